@@ -1,0 +1,126 @@
+// `stf plot`: the thesis's theta-phi direction plots (its Fig. 4.2-4.5) for one alpha.
+// This side looks up cells and densities; tools/plot_directions.py (matplotlib) draws them.
+#include <CLI/CLI.hpp>
+#include <H5Cpp.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <memory>
+
+#include "cli.h"
+#include "grid.h"
+#include "table.h"
+
+namespace stf::cli {
+
+namespace {
+
+struct PlotOptions {
+  std::vector<std::string> tables;
+  double alpha_deg = 0;
+  std::string output;
+  int width = 720;
+};
+
+// Density p(w' | alpha) per steradian of each cell in the alpha bin holding `alpha`.
+std::vector<double> cell_density(const Table& t, int bin) {
+  std::vector<double> weight = t.weight();
+  double total = 0;
+  for (std::int64_t c = 0; c < t.cells; ++c) total += weight[std::size_t(bin) * t.cells + c];
+  std::vector<double> density(t.cells, 0.0);
+  if (total <= 0) return density;
+  for (std::int64_t c = 0; c < t.cells; ++c)
+    density[c] = weight[std::size_t(bin) * t.cells + c] / (total * t.solid_angle[c]);
+  return density;
+}
+
+void put(H5::Group& g, const char* name, const std::vector<double>& v, std::vector<hsize_t> dims) {
+  H5::DataSpace space(int(dims.size()), dims.data());
+  g.createDataSet(name, H5::PredType::NATIVE_DOUBLE, space).write(v.data(), H5::PredType::NATIVE_DOUBLE);
+}
+
+void put_attr(H5::Group& g, const char* name, const std::string& value) {
+  H5::StrType type(H5::PredType::C_S1, H5T_VARIABLE);
+  const char* c = value.c_str();
+  g.createAttribute(name, type, H5::DataSpace()).write(type, &c);
+}
+
+// One panel's data: the density raster over (theta, phi) from each pixel's own cell, and the
+// cell centres with their densities (what the thesis interpolated).
+void write_panel(H5::H5File& file, int index, const std::string& path, double alpha, int width) {
+  Table t = read_table(path);
+  int bin = std::min(int(alpha / kPi * t.alpha_bins), t.alpha_bins - 1);
+  std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
+  std::vector<double> density = cell_density(t, bin);
+  const int height = width / 2;
+  std::vector<double> raster(std::size_t(width) * height);
+  for (int r = 0; r < height; ++r) {
+    double theta = kPi * (r + 0.5) / height;
+    for (int c = 0; c < width; ++c) {
+      double phi = -kPi + 2 * kPi * (c + 0.5) / width;
+      Vec3 d{std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
+      raster[std::size_t(r) * width + c] = density[grid->cell(d)];
+    }
+  }
+  std::vector<double> theta(t.cells), phi(t.cells);
+  for (std::int64_t c = 0; c < t.cells; ++c) {
+    const auto& v = t.direction[c];
+    theta[c] = std::atan2(std::hypot(v[0], v[1]), v[2]);
+    phi[c] = std::atan2(v[1], v[0]);
+  }
+  H5::Group g = file.createGroup("/panel" + std::to_string(index));
+  put(g, "raster", raster, {hsize_t(height), hsize_t(width)});
+  put(g, "cell_theta", theta, {hsize_t(t.cells)});
+  put(g, "cell_phi", phi, {hsize_t(t.cells)});
+  put(g, "cell_density", density, {hsize_t(t.cells)});
+  char title[256];
+  std::snprintf(title, sizeof title,
+                "%s  sigma_s=%g sigma_a=%g g=%g  alpha in [%.1f, %.1f) deg  %.3g paths",
+                t.grid.c_str(), t.medium.sigma_s, t.medium.sigma_a, t.medium.g,
+                t.alpha_edges[bin] * 180 / kPi, t.alpha_edges[bin + 1] * 180 / kPi,
+                double(t.paths));
+  put_attr(g, "title", title);
+}
+
+std::string tools_dir() {
+  if (const char* env = std::getenv("STF_TOOLS_DIR")) return env;
+  return STF_TOOLS_DIR;
+}
+
+void run_plot(const PlotOptions& o) {
+  if (!(o.alpha_deg >= 0 && o.alpha_deg <= 180)) fail("--alpha must be in [0, 180] degrees");
+  if (o.width < 64 || o.width > 8192) fail("--width must be in 64..8192");
+  AtomicOutput data(o.output + ".data.h5", "-o");
+  AtomicOutput png(o.output, "-o");
+  {
+    H5::Exception::dontPrint();
+    H5::H5File file(data.temp_path(), H5F_ACC_TRUNC);
+    for (std::size_t i = 0; i < o.tables.size(); ++i)
+      write_panel(file, int(i), o.tables[i], o.alpha_deg * kPi / 180, o.width);
+  }
+  std::string command = "/usr/bin/python3 '" + tools_dir() + "/plot_directions.py' '" +
+                        data.temp_path() + "' '" + png.temp_path() + "'";
+  if (std::system(command.c_str()) != 0) fail("plotting failed: " + command);
+  png.commit();
+}
+
+}  // namespace
+
+void add_plot_command(CLI::App& app) {
+  auto o = std::make_shared<PlotOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "plot", "Theta-phi plots of exit directions for one alpha (one row per table), PNG");
+  cmd->add_option("tables", o->tables, "Raw tables (HDF5)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--alpha", o->alpha_deg, "Exit-point angle alpha in degrees")->required();
+  cmd->add_option("-o,--output", o->output, "Output image (PNG)")->required();
+  cmd->add_option("--width", o->width, "Raster width in pixels")->capture_default_str();
+  cmd->callback([o] {
+    try {
+      run_plot(*o);
+    } catch (const H5::Exception& e) {
+      fail("cannot write plot data: " + e.getDetailMsg());
+    }
+  });
+}
+
+}  // namespace stf::cli

@@ -1,0 +1,170 @@
+#include "grid.h"
+
+#include <healpix_base.h>
+#include <wcslib/prj.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <stdexcept>
+
+namespace stf {
+
+namespace {
+
+constexpr double kDeg = 180.0 / kPi;
+
+int parse_positive(const std::string& text, const std::string& spec) {
+  int value = 0;
+  auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc() || end != text.data() + text.size() || value <= 0)
+    throw std::invalid_argument("--grid '" + spec +
+                                "' is not valid: expected csc:N or healpix:NSIDE with a "
+                                "positive integer");
+  return value;
+}
+
+// Solid angle of the spherical triangle (a, b, c), Van Oosterom & Strackee (1983): the
+// atan2 form stays accurate for the tiny triangles of fine sub-division.
+double triangle_solid_angle(const Vec3& a, const Vec3& b, const Vec3& c) {
+  Vec3 bxc{b.y * c.z - b.z * c.y, b.z * c.x - b.x * c.z, b.x * c.y - b.y * c.x};
+  double numer = dot(a, bxc);
+  double denom = 1 + dot(a, b) + dot(b, c) + dot(c, a);
+  return 2 * std::atan2(std::abs(numer), denom);
+}
+
+}  // namespace
+
+std::unique_ptr<DirectionGrid> make_grid(const std::string& spec) {
+  auto colon = spec.find(':');
+  std::string kind = spec.substr(0, colon);
+  if (colon == std::string::npos || (kind != "csc" && kind != "healpix"))
+    throw std::invalid_argument("--grid '" + spec + "' is not valid: expected csc:N or healpix:NSIDE");
+  int value = parse_positive(spec.substr(colon + 1), spec);
+  if (kind == "csc") {
+    if (value > 1024) throw std::invalid_argument("--grid csc:N allows 1 <= N <= 1024, got " + spec);
+    return std::make_unique<CscGrid>(value);
+  }
+  if (value > 8192 || (value & (value - 1)) != 0)
+    throw std::invalid_argument("--grid healpix:NSIDE needs a power of two 1..8192, got " + spec);
+  return std::make_unique<HealpixGrid>(value);
+}
+
+// ---- CSC ----------------------------------------------------------------------------------
+
+struct CscGrid::Projection {
+  prjprm prj;
+};
+
+CscGrid::CscGrid(int n) : n_(n), prj_(std::make_unique<Projection>()) {
+  prjini(&prj_->prj);
+  if (cscset(&prj_->prj) != 0) throw std::runtime_error("WCSLIB cscset failed");
+}
+
+CscGrid::~CscGrid() = default;
+
+std::string CscGrid::spec() const { return "csc:" + std::to_string(n_); }
+
+void CscGrid::face_offset(int face, double& x0, double& y0) {
+  static constexpr double kX[6] = {0, 0, 90, 180, 270, 0};
+  static constexpr double kY[6] = {90, 0, 0, 0, 0, -90};
+  x0 = kX[face];
+  y0 = kY[face];
+}
+
+std::int64_t CscGrid::cell(const Vec3& d) const {
+  // WCSLIB's native spherical coordinates: longitude phi, latitude theta, in degrees.
+  double phi = std::atan2(d.y, d.x) * kDeg;
+  double theta = std::atan2(d.z, std::hypot(d.x, d.y)) * kDeg;
+  double x = 0, y = 0;
+  int stat = 0;
+  cscs2x(&prj_->prj, 1, 1, 1, 1, &phi, &theta, &x, &y, &stat);
+  // Face from WCSLIB's plane position (its "sideways T" layout).
+  int face;
+  if (y > 45) {
+    face = 0;
+  } else if (y < -45) {
+    face = 5;
+  } else {
+    if (x < -45) x += 360;
+    face = 1 + std::clamp(int(std::floor((x + 45) / 90)), 0, 3);
+  }
+  double x0, y0;
+  face_offset(face, x0, y0);
+  double xf = (x - x0) / 45, yf = (y - y0) / 45;  // face coordinates in [-1, 1]
+  int col = std::clamp(int(std::floor((xf + 1) * 0.5 * n_)), 0, n_ - 1);
+  int row = std::clamp(int(std::floor((yf + 1) * 0.5 * n_)), 0, n_ - 1);
+  return (std::int64_t(face) * n_ + row) * n_ + col;
+}
+
+Vec3 CscGrid::face_point(int face, double xf, double yf) const {
+  double x0, y0;
+  face_offset(face, x0, y0);
+  double x = x0 + 45 * xf, y = y0 + 45 * yf, phi = 0, theta = 0;
+  int stat = 0;
+  cscx2s(&prj_->prj, 1, 1, 1, 1, &x, &y, &phi, &theta, &stat);
+  double ct = std::cos(theta / kDeg);
+  return normalize({ct * std::cos(phi / kDeg), ct * std::sin(phi / kDeg), std::sin(theta / kDeg)});
+}
+
+Vec3 CscGrid::centre(std::int64_t cell) const {
+  int face = int(cell / (std::int64_t(n_) * n_));
+  int rem = int(cell % (std::int64_t(n_) * n_));
+  int row = rem / n_, col = rem % n_;
+  return face_point(face, -1 + (2 * col + 1.0) / n_, -1 + (2 * row + 1.0) / n_);
+}
+
+// The CSC is not equal-area: each cell's solid angle is the sum over an s x s sub-division of
+// its face square, each sub-square mapped through WCSLIB's inverse and measured as two
+// spherical triangles. Neighbouring cells share their sub-division vertices, so the pieces
+// tile each face without gaps.
+std::vector<double> CscGrid::solid_angles() const {
+  const int s = std::max(2, 64 / n_);
+  const int m = n_ * s;  // vertices per face edge - 1
+  std::vector<double> omega(cell_count(), 0.0);
+  std::vector<Vec3> v((m + 1) * (m + 1));
+  for (int face = 0; face < 6; ++face) {
+    for (int j = 0; j <= m; ++j)
+      for (int i = 0; i <= m; ++i)
+        v[j * (m + 1) + i] = face_point(face, -1 + 2.0 * i / m, -1 + 2.0 * j / m);
+    for (int j = 0; j < m; ++j) {
+      for (int i = 0; i < m; ++i) {
+        const Vec3& a = v[j * (m + 1) + i];
+        const Vec3& b = v[j * (m + 1) + i + 1];
+        const Vec3& c = v[(j + 1) * (m + 1) + i + 1];
+        const Vec3& d = v[(j + 1) * (m + 1) + i];
+        std::int64_t id = (std::int64_t(face) * n_ + j / s) * n_ + i / s;
+        omega[id] += triangle_solid_angle(a, b, c) + triangle_solid_angle(a, c, d);
+      }
+    }
+  }
+  return omega;
+}
+
+// ---- HEALPix ------------------------------------------------------------------------------
+
+struct HealpixGrid::Base {
+  T_Healpix_Base<int64> base;
+};
+
+HealpixGrid::HealpixGrid(int nside)
+    : nside_(nside), base_(std::make_unique<Base>(Base{T_Healpix_Base<int64>(nside, RING, SET_NSIDE)})) {}
+
+HealpixGrid::~HealpixGrid() = default;
+
+std::string HealpixGrid::spec() const { return "healpix:" + std::to_string(nside_); }
+
+std::int64_t HealpixGrid::cell(const Vec3& d) const {
+  return base_->base.vec2pix(vec3(d.x, d.y, d.z));
+}
+
+Vec3 HealpixGrid::centre(std::int64_t cell) const {
+  vec3 v = base_->base.pix2vec(cell);
+  return {v.x, v.y, v.z};
+}
+
+std::vector<double> HealpixGrid::solid_angles() const {
+  return std::vector<double>(cell_count(), 4 * kPi / double(cell_count()));
+}
+
+}  // namespace stf

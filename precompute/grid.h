@@ -1,0 +1,74 @@
+// Direction grids: a partition of the sphere of directions into cells with known solid
+// angles. `csc:N` is the thesis's COBE sky cube (section 3.3.1) on WCSLIB's CSC projection;
+// `healpix:NSIDE` is HEALPix (RING order): equal-area cells, no special cells at the poles.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "geometry.h"
+
+namespace stf {
+
+class DirectionGrid {
+ public:
+  virtual ~DirectionGrid() = default;
+  // The spec this grid was made from, e.g. "csc:45" or "healpix:16".
+  virtual std::string spec() const = 0;
+  virtual std::int64_t cell_count() const = 0;
+  // The cell containing a unit direction. Every direction maps to exactly one cell.
+  virtual std::int64_t cell(const Vec3& direction) const = 0;
+  // Unit vector at the cell's centre.
+  virtual Vec3 centre(std::int64_t cell) const = 0;
+  // Solid angle of every cell (steradians); they sum to 4 pi.
+  virtual std::vector<double> solid_angles() const = 0;
+};
+
+// Parses "csc:N" (1 <= N <= 1024) or "healpix:NSIDE" (a power of two, 1 <= NSIDE <= 8192).
+// Throws std::invalid_argument with a message naming what is allowed.
+std::unique_ptr<DirectionGrid> make_grid(const std::string& spec);
+
+// The thesis's cube layout: cell index = face * N^2 + row * N + column, rows and columns
+// counted from the bottom-left of each face in WCSLIB's (x, y) plane. Faces follow WCSLIB:
+// 0 = +z (theta = 90 deg), 1 = +x, 2 = +y, 3 = -x, 4 = -y, 5 = -z.
+class CscGrid final : public DirectionGrid {
+ public:
+  explicit CscGrid(int n);
+  ~CscGrid() override;
+  std::string spec() const override;
+  std::int64_t cell_count() const override { return 6ll * n_ * n_; }
+  std::int64_t cell(const Vec3& direction) const override;
+  Vec3 centre(std::int64_t cell) const override;
+  std::vector<double> solid_angles() const override;
+
+  int n() const { return n_; }
+  // Centre of `face` in WCSLIB's projection plane, in degrees.
+  static void face_offset(int face, double& x0, double& y0);
+  // Unit direction at face coordinates (xf, yf) in [-1, 1]^2, through WCSLIB's inverse.
+  Vec3 face_point(int face, double xf, double yf) const;
+
+ private:
+  int n_;
+  struct Projection;
+  std::unique_ptr<Projection> prj_;
+};
+
+class HealpixGrid final : public DirectionGrid {
+ public:
+  explicit HealpixGrid(int nside);
+  ~HealpixGrid() override;
+  std::string spec() const override;
+  std::int64_t cell_count() const override { return 12ll * nside_ * nside_; }
+  std::int64_t cell(const Vec3& direction) const override;
+  Vec3 centre(std::int64_t cell) const override;
+  std::vector<double> solid_angles() const override;
+
+ private:
+  int nside_;
+  struct Base;
+  std::unique_ptr<Base> base_;
+};
+
+}  // namespace stf

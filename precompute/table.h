@@ -1,0 +1,48 @@
+// The raw shell transport table (CONTRACT.md "Raw table") and its HDF5 form.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace stf {
+
+// A homogeneous medium in a sphere. Only tau, albedo and g shape the table.
+struct Medium {
+  double sigma_s = 0, sigma_a = 0, g = 0, radius = 1;
+  double sigma_t() const { return sigma_s + sigma_a; }
+  double tau() const { return sigma_t() * radius; }
+  double albedo() const { return sigma_s / sigma_t(); }
+};
+
+struct Table {
+  Medium medium;
+  std::int64_t paths = 0;
+  std::int64_t seed = 0;
+  std::int64_t max_scatter = -1;  // -1: unlimited but for the safety cap
+  std::int64_t safety_cap = 0;    // the collision cap applied when max_scatter is -1
+  std::string grid;               // "csc:N" or "healpix:NSIDE"
+  int alpha_bins = 0;
+  std::int64_t cells = 0;
+  std::vector<double> alpha_edges;              // [alpha_bins + 1]
+  std::vector<std::array<double, 3>> direction;  // [cells] cell centres
+  std::vector<double> solid_angle;               // [cells]
+  // Escaped weight per (alpha bin, cell) from the even- and odd-numbered paths: two
+  // independent half-tables, so a fit can be scored on data it never saw.
+  std::array<std::vector<double>, 2> weight_half;  // each [alpha_bins * cells]
+  double escaped_weight = 0, absorbed_weight = 0, truncated_weight = 0;
+  std::int64_t collisions = 0;  // scattering and absorption events over all paths
+  double runtime_s = 0;
+  std::string generator;
+
+  // The full table: the sum of the two halves.
+  std::vector<double> weight() const;
+};
+
+// Writes `table` to `path` (replacing it). Throws std::runtime_error on failure.
+void write_table(const Table& table, const std::string& path);
+// Reads a table written by write_table (format_version 1). Throws std::runtime_error.
+Table read_table(const std::string& path);
+
+}  // namespace stf

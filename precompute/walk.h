@@ -1,0 +1,68 @@
+// The random walk of Algorithm 3.1 with DESIGN.md's corrections: analog absorption, stable HG
+// sampling, truncation at a collision cap with its weight recorded.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <vector>
+
+#include "grid.h"
+
+namespace stf {
+
+// Collisions a path may reach when no --max-scatter is given. A path in the diffusive regime
+// needs about (1 - g) tau^2 / 2 collisions (5e5 at tau = 1000, g = 0); the cap only stops
+// runaways, and whatever it stops is booked as truncated weight.
+inline constexpr std::int64_t kSafetyMaxScatter = 1'000'000'000;
+
+// Everything a walk needs, in the unit sphere: distances are in units of the radius, so the
+// extinction coefficient is tau.
+struct WalkSetup {
+  double tau = 1, albedo = 1, g = 0;
+  // A path reaching collision number max_scatter + 1 stops there, before that collision's
+  // absorption is decided, and is counted as truncated.
+  std::int64_t max_scatter = kSafetyMaxScatter;
+  int alpha_bins = 90;
+  const DirectionGrid* grid = nullptr;
+};
+
+// Linear alpha bins on [0, pi], looked up by cos(alpha) (no inverse trigonometry per escape).
+class AlphaBins {
+ public:
+  explicit AlphaBins(int bins);
+  int bins() const { return int(cos_edges_.size()) - 1; }
+  // Bin of the exit point with z = cos(alpha); bin b holds alpha in [pi b / n, pi (b+1) / n).
+  int bin(double cos_alpha) const;
+
+ private:
+  std::vector<double> cos_edges_;  // decreasing, cos(pi b / n)
+};
+
+// Integer tallies of one or more chunks. Counts are integers, so adding tallies in any order
+// gives the same table: the result does not depend on the number of threads.
+struct Tally {
+  std::int64_t cells = 0;
+  int alpha_bins = 0;
+  std::vector<std::uint64_t> counts[2];  // per half: [alpha_bins * cells]
+  std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0;
+
+  Tally(int alpha_bins, std::int64_t cells);
+  void add(const Tally& other);
+};
+
+// Paths per chunk for a run of `paths`: a function of `paths` alone, so that the chunks (and
+// with them every random number) are the same for any thread count.
+std::int64_t chunk_paths(std::int64_t paths);
+
+struct WalkControl {
+  const std::atomic<bool>* cancel = nullptr;      // stop early when set
+  std::atomic<std::int64_t>* paths_done = nullptr;  // progress, updated every few paths
+};
+
+// Walks paths [first_path, first_path + count) with the random streams of `chunk`, adding
+// to `tally`. Returns false if it was cancelled (the tally is then incomplete).
+bool walk_chunk(const WalkSetup& setup, std::uint64_t seed, std::uint64_t chunk,
+                std::int64_t first_path, std::int64_t count, Tally& tally,
+                const WalkControl& control = {});
+
+}  // namespace stf

@@ -1,0 +1,184 @@
+// The `stf` command line as users and scripts see it: bad input gets one line naming the
+// option and leaves no file; interruption leaves nothing half-written; plots render.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+
+#include "table.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Result {
+  int status;
+  std::string err;
+};
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::path(::testing::TempDir()) / ("stf_cli_" + std::to_string(::getpid()) + "_" +
+                                            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  Result stf(const std::string& args) {
+    std::string err = (dir_ / "stderr.txt").string();
+    std::string cmd = std::string(STF_BINARY) + " " + args + " 2>'" + err + "' >/dev/null";
+    int raw = std::system(cmd.c_str());
+    std::ifstream in(err);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    fs::remove(err);
+    return {WIFEXITED(raw) ? WEXITSTATUS(raw) : 128 + WTERMSIG(raw), ss.str()};
+  }
+
+  // Files in the test folder, other than the captured stderr.
+  std::vector<std::string> files() const {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir_)) names.push_back(e.path().filename().string());
+    return names;
+  }
+
+  std::string out(const std::string& name) const { return (dir_ / name).string(); }
+
+  fs::path dir_;
+};
+
+const std::string kGood = "--sigma-s 2 --sigma-a 0.5 --g 0.3 --alpha-bins 6 --grid healpix:2 --paths 2000 --quiet";
+
+TEST_F(Cli, ValidRunWritesAContractTable) {
+  Result r = stf("precompute " + kGood + " --seed 9 -o " + out("t.h5"));
+  ASSERT_EQ(r.status, 0) << r.err;
+  stf::Table t = stf::read_table(out("t.h5"));
+  EXPECT_EQ(t.paths, 2000);
+  EXPECT_EQ(t.seed, 9);
+  EXPECT_EQ(t.grid, "healpix:2");
+  EXPECT_EQ(t.escaped_weight + t.absorbed_weight + t.truncated_weight, 2000);
+  EXPECT_EQ(files(), std::vector<std::string>{"t.h5"});
+}
+
+TEST_F(Cli, ExponentNotationForCounts) {
+  Result r = stf("precompute --sigma-s 1 --sigma-a 0 --g 0 --paths 2e3 --seed 1e1 --alpha-bins 4 "
+                 "--grid csc:2 --quiet -o " + out("t.h5"));
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(stf::read_table(out("t.h5")).paths, 2000);
+  EXPECT_EQ(stf::read_table(out("t.h5")).seed, 10);
+}
+
+struct BadInput {
+  std::string args;
+  std::string option;  // the stderr line must name it
+};
+
+TEST_F(Cli, BadInputGetsOneLineNamingTheOptionAndNoFile) {
+  const std::string medium = "--sigma-s 1 --sigma-a 0 --g 0 --paths 100 --quiet";
+  const BadInput cases[] = {
+      {"--sigma-s -1 --sigma-a 0 --g 0", "--sigma-s"},
+      {"--sigma-s nan --sigma-a 0 --g 0", "--sigma-s"},
+      {"--sigma-s 1 --sigma-a -0.5 --g 0", "--sigma-a"},
+      {"--sigma-s 1 --sigma-a nan --g 0", "--sigma-a"},
+      {"--sigma-s 1 --sigma-a inf --g 0", "--sigma-a"},
+      {"--sigma-s 1 --sigma-a 0 --g 1", "--g"},
+      {"--sigma-s 1 --sigma-a 0 --g -1", "--g"},
+      {"--sigma-s 1 --sigma-a 0 --g 1.5", "--g"},
+      {"--sigma-s 1 --sigma-a 0 --g nan", "--g"},
+      {"--sigma-s 1 --sigma-a 0 --g 0 --radius 0", "--radius"},
+      {"--sigma-s 1 --sigma-a 0 --g 0 --radius -2", "--radius"},
+      {"--sigma-s 0 --sigma-a 0 --g 0", "--sigma-s"},
+      {medium + " --paths 0", "--paths"},
+      {medium + " --paths -5", "--paths"},
+      {medium + " --paths 1.5", "--paths"},
+      {medium + " --paths lots", "--paths"},
+      {medium + " --grid csc:0", "--grid"},
+      {medium + " --grid healpix:3", "--grid"},
+      {medium + " --grid hexagons:4", "--grid"},
+      {medium + " --alpha-bins 0", "--alpha-bins"},
+      {medium + " --max-scatter -2", "--max-scatter"},
+      {medium + " --threads -1", "--threads"},
+      {"--sigma-a 0 --g 0", "--sigma-s"},
+      {medium + " --bogus 3", "--bogus"},
+  };
+  for (const BadInput& c : cases) {
+    Result r = stf("precompute " + c.args + " -o " + out("t.h5"));
+    EXPECT_NE(r.status, 0) << c.args;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.option), std::string::npos) << c.args << "\n" << r.err;
+    EXPECT_TRUE(files().empty()) << c.args;
+  }
+}
+
+TEST_F(Cli, UnwritableOutputIsRejectedBeforeWalking) {
+  Result r = stf("precompute " + kGood + " -o /nonexistent-folder/t.h5");
+  EXPECT_NE(r.status, 0);
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find("-o"), std::string::npos) << r.err;
+}
+
+// Ctrl-C during a long walk: non-zero exit, no output and no temporary file, and an existing
+// file at the output path is left as it was.
+TEST_F(Cli, InterruptLeavesNothingHalfWrittenAndKeepsTheOldFile) {
+  ASSERT_EQ(stf("precompute " + kGood + " -o " + out("t.h5")).status, 0);
+  auto before = fs::file_size(out("t.h5"));
+  pid_t pid = ::fork();
+  if (pid == 0) {
+    ::execl(STF_BINARY, STF_BINARY, "precompute", "--sigma-s", "200", "--sigma-a", "0", "--g", "0",
+            "--paths", "1e8", "--quiet", "-o", out("t.h5").c_str(), (char*)nullptr);
+    ::_exit(127);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_NE(WEXITSTATUS(status), 0);
+  EXPECT_EQ(files(), std::vector<std::string>{"t.h5"});
+  EXPECT_EQ(fs::file_size(out("t.h5")), before);
+  EXPECT_EQ(stf::read_table(out("t.h5")).paths, 2000);
+}
+
+TEST_F(Cli, HelpAndVersion) {
+  EXPECT_EQ(stf("--help").status, 0);
+  EXPECT_EQ(stf("precompute --help").status, 0);
+  EXPECT_EQ(stf("plot --help").status, 0);
+  EXPECT_EQ(stf("--version").status, 0);
+  EXPECT_NE(stf("").status, 0);
+}
+
+bool have_matplotlib() {
+  return std::system("/usr/bin/python3 -c 'import matplotlib, h5py' >/dev/null 2>&1") == 0;
+}
+
+TEST_F(Cli, PlotDrawsCscAndHealpixSideBySide) {
+  if (!have_matplotlib()) GTEST_SKIP() << "Debian's python3-matplotlib / python3-h5py not installed";
+  ASSERT_EQ(stf("precompute --sigma-s 5 --sigma-a 0 --g 0.5 --grid csc:9 --alpha-bins 18 --paths 2e4 "
+                "--quiet -o " + out("csc.h5")).status, 0);
+  ASSERT_EQ(stf("precompute --sigma-s 5 --sigma-a 0 --g 0.5 --grid healpix:4 --alpha-bins 18 "
+                "--paths 2e4 --quiet -o " + out("hpx.h5")).status, 0);
+  Result r = stf("plot " + out("csc.h5") + " " + out("hpx.h5") + " --alpha 30 --width 128 -o " +
+                 out("pair.png"));
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::ifstream png(out("pair.png"), std::ios::binary);
+  char magic[8] = {};
+  png.read(magic, 8);
+  EXPECT_EQ(std::string(magic + 1, 3), "PNG");
+  EXPECT_EQ(files().size(), 3u);  // the two tables and the plot; no temporary data left
+
+  Result bad = stf("plot " + out("csc.h5") + " --alpha 200 -o " + out("x.png"));
+  EXPECT_NE(bad.status, 0);
+  EXPECT_NE(bad.err.find("--alpha"), std::string::npos);
+}
+
+}  // namespace

@@ -1,0 +1,52 @@
+#include "table.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <stdexcept>
+
+#include "precompute.h"
+
+namespace stf {
+namespace {
+
+TEST(Table, WriteReadRoundTripIsExact) {
+  PrecomputeSettings s;
+  s.paths = 20'000;
+  s.alpha_bins = 12;
+  s.grid = "csc:4";
+  s.max_scatter = 5;
+  Table t = *precompute({3, 1, -0.2, 2}, s);
+  std::string path = ::testing::TempDir() + "/roundtrip_" + std::to_string(::getpid()) + ".h5";
+  write_table(t, path);
+  Table r = read_table(path);
+  std::remove(path.c_str());
+  EXPECT_EQ(r.medium.sigma_s, 3);
+  EXPECT_EQ(r.medium.radius, 2);
+  EXPECT_EQ(r.paths, t.paths);
+  EXPECT_EQ(r.max_scatter, 5);
+  EXPECT_EQ(r.grid, "csc:4");
+  EXPECT_EQ(r.weight_half[0], t.weight_half[0]);
+  EXPECT_EQ(r.weight_half[1], t.weight_half[1]);
+  EXPECT_EQ(r.alpha_edges, t.alpha_edges);
+  EXPECT_EQ(r.solid_angle, t.solid_angle);
+  EXPECT_EQ(r.direction, t.direction);
+  EXPECT_EQ(r.escaped_weight, t.escaped_weight);
+  EXPECT_EQ(r.truncated_weight, t.truncated_weight);
+  EXPECT_EQ(r.collisions, t.collisions);
+  EXPECT_EQ(r.generator, t.generator);
+}
+
+TEST(Table, ReadingANonTableFails) {
+  EXPECT_THROW(read_table("/nonexistent/table.h5"), std::runtime_error);
+  std::string path = ::testing::TempDir() + "/garbage_" + std::to_string(::getpid()) + ".h5";
+  FILE* f = std::fopen(path.c_str(), "w");
+  std::fputs("not hdf5", f);
+  std::fclose(f);
+  EXPECT_THROW(read_table(path), std::runtime_error);
+  std::remove(path.c_str());
+}
+
+}  // namespace
+}  // namespace stf

@@ -1,0 +1,265 @@
+// Physics of the walk against exact limits (DESIGN.md "Exact checks worth knowing").
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numeric>
+
+#include "chi2.h"
+#include "grid.h"
+#include "hg.h"
+#include "precompute.h"
+#include "seed.h"
+#include "walk.h"
+
+namespace stf {
+namespace {
+
+Table run(const Medium& m, PrecomputeSettings s) {
+  auto table = precompute(m, s);
+  EXPECT_TRUE(table.has_value());
+  return *table;
+}
+
+std::vector<double> alpha_marginal(const Table& t) {
+  std::vector<double> w = t.weight(), marginal(t.alpha_bins, 0);
+  for (int b = 0; b < t.alpha_bins; ++b)
+    for (std::int64_t c = 0; c < t.cells; ++c) marginal[b] += w[b * t.cells + c];
+  return marginal;
+}
+
+// Binomial count within 6 standard deviations of its mean.
+void expect_binomial(double count, double n, double p, const char* what) {
+  EXPECT_NEAR(count, n * p, 6 * std::sqrt(n * p * (1 - p)) + 1e-9) << what << " (p = " << p << ")";
+}
+
+TEST(Walk, WeightBookkeepingIsExact) {
+  PrecomputeSettings s;
+  s.paths = 200'000;
+  s.alpha_bins = 18;
+  s.grid = "healpix:4";
+  s.max_scatter = 3;
+  s.seed = test::test_seed(31);
+  Table t = run({2, 1, 0.4, 1}, s);
+  EXPECT_EQ(t.escaped_weight + t.absorbed_weight + t.truncated_weight, double(t.paths));
+  std::vector<double> w = t.weight();
+  EXPECT_EQ(std::accumulate(w.begin(), w.end(), 0.0), t.escaped_weight);
+  double halves = std::accumulate(t.weight_half[1].begin(), t.weight_half[1].end(), 0.0);
+  expect_binomial(halves, t.escaped_weight, 0.5, "odd-path half");
+  EXPECT_GT(t.truncated_weight, 0);
+  EXPECT_GT(t.absorbed_weight, 0);
+}
+
+// max_scatter = 0: a path either escapes without collision (probability exp(-tau)), at alpha
+// = 0 heading +z, or is truncated at its first collision before absorption is decided.
+TEST(Walk, NoCollisionLimitEscapesExpMinusTauAlongZ) {
+  for (double tau : {0.1, 1.0, 3.0}) {
+    PrecomputeSettings s;
+    s.paths = 400'000;
+    s.alpha_bins = 10;
+    s.grid = "csc:3";
+    s.max_scatter = 0;
+    s.seed = test::test_seed(32);
+    Table t = run({0.5 * tau, 0.5 * tau, 0.7, 1}, s);
+    auto grid = make_grid(s.grid);
+    std::vector<double> w = t.weight();
+    double at_origin = w[grid->cell({0, 0, 1})];  // alpha bin 0, cell of +z
+    EXPECT_EQ(at_origin, t.escaped_weight) << "every escape is at alpha = 0 along +z";
+    EXPECT_EQ(t.absorbed_weight, 0);
+    expect_binomial(t.escaped_weight, double(s.paths), std::exp(-tau), "uncollided escapes");
+  }
+}
+
+TEST(Walk, AlbedoZeroLeavesOnlyTheUnscatteredEscape) {
+  PrecomputeSettings s;
+  s.paths = 400'000;
+  s.alpha_bins = 10;
+  s.grid = "healpix:2";
+  s.seed = test::test_seed(33);
+  Table t = run({0, 2, -0.3, 1}, s);
+  auto grid = make_grid(s.grid);
+  EXPECT_EQ(t.weight()[grid->cell({0, 0, 1})], t.escaped_weight);
+  EXPECT_EQ(t.truncated_weight, 0);
+  EXPECT_EQ(double(t.collisions), t.absorbed_weight);  // one collision each, all absorbing
+  expect_binomial(t.escaped_weight, double(s.paths), std::exp(-2.0), "uncollided escapes");
+}
+
+// Gauss-Legendre nodes and weights on [-1, 1] (Newton on the Legendre recurrence).
+void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w) {
+  x.resize(n);
+  w.resize(n);
+  for (int i = 0; i < n; ++i) {
+    double z = std::cos(kPi * (i + 0.75) / (n + 0.5)), dp = 0;
+    for (int it = 0; it < 100; ++it) {
+      double p0 = 1, p1 = 0;
+      for (int k = 1; k <= n; ++k) {
+        double p2 = p1;
+        p1 = p0;
+        p0 = ((2 * k - 1) * z * p1 - (k - 1) * p2) / k;
+      }
+      dp = n * (z * p0 - p1) / (z * z - 1);
+      double dz = p0 / dp;
+      z -= dz;
+      if (std::abs(dz) < 1e-15) break;
+    }
+    x[i] = z;
+    w[i] = 2 / ((1 - z * z) * dp * dp);
+  }
+}
+
+// Composite Gauss-Legendre of f over [a, b].
+template <typename F>
+double quadrature(F f, double a, double b, int panels = 32, int order = 20) {
+  static std::vector<double> x, w;
+  if (int(x.size()) != order) gauss_legendre(order, x, w);
+  double sum = 0, h = (b - a) / panels;
+  for (int p = 0; p < panels; ++p) {
+    double lo = a + p * h;
+    for (int i = 0; i < order; ++i) sum += 0.5 * h * w[i] * f(lo + 0.5 * h * (x[i] + 1));
+  }
+  return sum;
+}
+
+struct OneCollisionExact {
+  std::vector<double> escaped_per_bin;  // fraction of paths escaping into each alpha bin
+  double absorbed, truncated;
+};
+
+// max_scatter = 1 in the unit sphere: collision at depth s (density tau e^{-tau s}), survives
+// with `albedo`, scatters to mu by HG, escapes after t(s, mu) with probability e^{-tau t} at
+// cos(alpha) = s + t mu, or is truncated at its second collision. For fixed s the exit angle
+// alpha grows as mu falls, and the mu aiming at the exit point of angle a is
+// (cos a - s) / sqrt(1 - 2 s cos a + s^2); so each alpha bin is a mu interval and the integrand
+// is smooth inside it.
+OneCollisionExact one_collision_exact(double tau, double albedo, double g, int bins) {
+  OneCollisionExact e;
+  e.escaped_per_bin.assign(bins, 0);
+  auto mu_towards = [](double a, double s) {
+    double c = std::cos(a);
+    return (c - s) / std::sqrt(1 - 2 * s * c + s * s);
+  };
+  auto exit_distance = [](double s, double mu) { return -s * mu + std::sqrt(1 - s * s * (1 - mu * mu)); };
+  for (int b = 0; b < bins; ++b) {
+    double a0 = kPi * b / bins, a1 = kPi * (b + 1) / bins;
+    e.escaped_per_bin[b] = albedo * quadrature(
+        [&](double s) {
+          double inner = quadrature(
+              [&](double mu) { return hg_pdf_mu(g, mu) * std::exp(-tau * exit_distance(s, mu)); },
+              mu_towards(a1, s), mu_towards(a0, s), 8, 20);
+          return tau * std::exp(-tau * s) * inner;
+        },
+        0, 1);
+  }
+  e.escaped_per_bin[0] += std::exp(-tau);  // uncollided
+  double escaped = std::accumulate(e.escaped_per_bin.begin(), e.escaped_per_bin.end(), 0.0);
+  e.absorbed = (1 - albedo) * (1 - std::exp(-tau));
+  e.truncated = 1 - escaped - e.absorbed;
+  return e;
+}
+
+TEST(Walk, OneCollisionMatchesExactQuadrature) {
+  struct Case {
+    double sigma_s, sigma_a, g;
+  };
+  for (Case c : {Case{1.5, 0.5, 0.3}, Case{0.6, 0.2, -0.5}, Case{4, 0, 0.8}}) {
+    const int bins = 18;
+    PrecomputeSettings s;
+    s.paths = 2'000'000;
+    s.alpha_bins = bins;
+    s.grid = "healpix:1";
+    s.max_scatter = 1;
+    s.seed = test::test_seed(34);
+    SCOPED_TRACE(test::seed_trace(std::uint64_t(s.seed)));
+    Medium m{c.sigma_s, c.sigma_a, c.g, 1};
+    Table t = run(m, s);
+    OneCollisionExact e = one_collision_exact(m.tau(), m.albedo(), m.g, bins);
+    // One multinomial over (alpha bins of escape, absorbed, truncated).
+    std::vector<double> observed = alpha_marginal(t), expected = e.escaped_per_bin;
+    observed.push_back(t.absorbed_weight);
+    observed.push_back(t.truncated_weight);
+    expected.push_back(e.absorbed);
+    expected.push_back(e.truncated);
+    for (double& x : expected) x *= double(s.paths);
+    test::Chi2Result r = test::chi2_test(observed, expected);
+    EXPECT_GT(r.p_value, test::kChi2Alpha) << "g = " << c.g << ": " << r.describe();
+    expect_binomial(t.absorbed_weight, double(s.paths), e.absorbed, "absorbed");
+    expect_binomial(t.truncated_weight, double(s.paths), e.truncated, "truncated");
+  }
+}
+
+// Only tau = sigma_t r matters. Scaling by 2 keeps tau bit-identical, and so the table; a
+// factor 3 changes tau in its last bit, so the tables agree in distribution only.
+TEST(Walk, ScaleInvariance) {
+  PrecomputeSettings s;
+  s.paths = 300'000;
+  s.alpha_bins = 18;
+  s.grid = "healpix:2";
+  s.seed = test::test_seed(35);
+  Table base = run({3, 1, 0.5, 0.5}, s);
+  Table doubled = run({6, 2, 0.5, 0.25}, s);
+  EXPECT_EQ(base.weight(), doubled.weight());
+  EXPECT_EQ(base.absorbed_weight, doubled.absorbed_weight);
+
+  s.seed += 1;  // an independent sample for the two-sample test
+  Table tripled = run({9, 3, 0.5, 0.5 / 3}, s);
+  test::Chi2Result r = test::chi2_two_sample(base.weight(), tripled.weight());
+  EXPECT_GT(r.p_value, test::kChi2Alpha) << r.describe();
+}
+
+TEST(Walk, SameSeedSameTableForAnyThreadCount) {
+  PrecomputeSettings s;
+  s.paths = 300'001;  // not a multiple of the chunk size
+  s.alpha_bins = 30;
+  s.grid = "csc:5";
+  s.seed = 77;
+  std::vector<Table> tables;
+  for (int threads : {1, 2, 3, 5}) {
+    s.threads = threads;
+    tables.push_back(run({5, 0.5, 0.6, 1}, s));
+  }
+  for (std::size_t i = 1; i < tables.size(); ++i) {
+    EXPECT_EQ(tables[i].weight_half[0], tables[0].weight_half[0]);
+    EXPECT_EQ(tables[i].weight_half[1], tables[0].weight_half[1]);
+    EXPECT_EQ(tables[i].absorbed_weight, tables[0].absorbed_weight);
+    EXPECT_EQ(tables[i].collisions, tables[0].collisions);
+  }
+  s.seed = 78;
+  EXPECT_NE(run({5, 0.5, 0.6, 1}, s).weight(), tables[0].weight());
+}
+
+TEST(Walk, CancelStopsEarly) {
+  std::atomic<bool> cancel{true};
+  PrecomputeSettings s;
+  s.paths = 100'000'000;
+  EXPECT_FALSE(precompute({100, 0, 0, 1}, s, &cancel).has_value());
+}
+
+TEST(Walk, ValidateNamesTheOption) {
+  PrecomputeSettings ok;
+  EXPECT_FALSE(validate({1, 0, 0, 1}, ok).has_value());
+  EXPECT_NE(validate({-1, 0, 0, 1}, ok)->find("--sigma-s"), std::string::npos);
+  EXPECT_NE(validate({1, NAN, 0, 1}, ok)->find("--sigma-a"), std::string::npos);
+  EXPECT_NE(validate({1, 0, 1, 1}, ok)->find("--g"), std::string::npos);
+  EXPECT_NE(validate({1, 0, 0, 0}, ok)->find("--radius"), std::string::npos);
+  EXPECT_NE(validate({0, 0, 0, 1}, ok)->find("--sigma-s"), std::string::npos);
+  PrecomputeSettings bad = ok;
+  bad.grid = "csc:0";
+  EXPECT_NE(validate({1, 0, 0, 1}, bad)->find("--grid"), std::string::npos);
+}
+
+TEST(AlphaBins, MatchesLinearBinsInAlpha) {
+  AlphaBins bins(90);
+  for (int i = 0; i <= 10000; ++i) {
+    double alpha = kPi * i / 10000;
+    int expect = std::min(int(alpha / kPi * 90), 89);
+    int got = bins.bin(std::cos(alpha));
+    // Only points within rounding of an edge may land on its other side.
+    if (got != expect) {
+      EXPECT_NEAR(alpha * 90 / kPi, std::round(alpha * 90 / kPi), 1e-9);
+    }
+  }
+  EXPECT_EQ(bins.bin(1.0), 0);
+  EXPECT_EQ(bins.bin(-1.0), 89);
+}
+
+}  // namespace
+}  // namespace stf

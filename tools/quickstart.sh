@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# stf Quick start on Debian 12.
+#   tools/quickstart.sh          install what is missing (apt), build, precompute the default
+#                                medium of data/ on both grids and plot it into out/
+#   tools/quickstart.sh --test   the same set-up, then the whole test suite (ctest)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+packages=(cmake g++ make pkg-config libhdf5-dev libcli11-dev wcslib-dev libhealpix-cxx-dev
+          libgtest-dev python3-matplotlib python3-h5py python3-numpy)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "quickstart: installing ${missing[*]}" >&2
+  sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
+cmake --build build -j "$(nproc)"
+
+if [ "${1:-}" = "--test" ]; then
+  ctest --test-dir build --output-on-failure -j "$(nproc)"
+  exit
+fi
+
+mkdir -p out
+build/stf --config data/default_medium.toml precompute -o out/default_healpix.h5
+build/stf --config data/default_medium.toml precompute --grid csc:45 -o out/default_csc.h5
+build/stf plot out/default_csc.h5 out/default_healpix.h5 --alpha 30 -o out/default_alpha30.png
+echo "quickstart: tables and plot in out/ (out/default_alpha30.png: CSC above, HEALPix below)" >&2
