@@ -52,4 +52,23 @@ inline SinCos sincos_2pi(float u) {
   return {sign * (odd ? c : s), sign * (odd ? -s : c)};
 }
 
+// atan2 in double to ~2e-9 rad without libm, branch-free: octant reduction to
+// |r| <= tan(pi/8), then the Taylor series of atan to r^19 (its first omitted term is below
+// 2e-9). For binning, where a cell edge must be found, not for precise angles.
+inline double fast_atan2(double y, double x) {
+  constexpr double kPi = 3.14159265358979323846;
+  double ax = x < 0 ? -x : x, ay = y < 0 ? -y : y;
+  bool steep = ay > ax;
+  double hi = steep ? ay : ax, lo = steep ? ax : ay;
+  double a = lo / (hi > 0 ? hi : 1.0);  // 0 / 0 at the origin gives angle 0
+  bool wide = a > 0.41421356237309503;
+  double r = wide ? (a - 1) / (a + 1) : a;
+  double r2 = r * r, p = 1.0 / 19;
+  for (int k = 17; k >= 1; k -= 2) p = p * -r2 + 1.0 / k;  // Horner in -r^2
+  double angle = r * p + (wide ? kPi / 4 : 0);
+  angle = steep ? kPi / 2 - angle : angle;
+  angle = x < 0 ? kPi - angle : angle;
+  return y < 0 ? -angle : angle;
+}
+
 }  // namespace stf

@@ -1,6 +1,7 @@
 // Small vector type and the frame conventions of a shell transport table.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 
 namespace stf {
@@ -26,18 +27,31 @@ struct ReducedExit {
   Vec3 direction;  // exit direction after the -beta rotation
 };
 
-// Rotates `direction` by -beta about z, beta = atan2(point.y, point.x), rho = |point.xy|.
-inline Vec3 rotate_to_xz_plane(const Vec3& point, const Vec3& direction, double rho) {
-  if (rho == 0) return direction;  // beta is undefined on the axis: no rotation
-  double cb = point.x / rho, sb = point.y / rho;
+// Distance from p inside the unit sphere along unit w to the sphere. The two forms of the root
+// avoid cancellation for b > 0 and b < 0; both are computed and one selected, so loops over
+// many rays stay branch-free.
+inline double exit_distance(const Vec3& p, const Vec3& w) {
+  double b = dot(p, w), c = dot(p, p) - 1;
+  double root = std::sqrt(std::max(b * b - c, 0.0));
+  double ahead = -c / (b + root), behind = root - b;
+  return b > 0 ? ahead : behind;
+}
+
+// Rotates `direction` by -beta about z, beta = atan2(point.y, point.x): the exit point moves
+// into the x-z plane (x >= 0). On the axis beta is undefined and nothing rotates. Branch-free.
+inline Vec3 rotate_to_xz_plane(const Vec3& point, const Vec3& direction) {
+  double rho2 = point.x * point.x + point.y * point.y;
+  bool on_axis = rho2 == 0;
+  double inv_rho = 1 / std::sqrt(on_axis ? 1.0 : rho2);
+  double cb = on_axis ? 1.0 : point.x * inv_rho, sb = on_axis ? 0.0 : point.y * inv_rho;
   return {cb * direction.x + sb * direction.y, -sb * direction.x + cb * direction.y, direction.z};
 }
 
+// The table's coordinates of an escape at unit `point` with unit `direction`.
 inline ReducedExit reduce_exit(const Vec3& point, const Vec3& direction) {
   double rho = std::sqrt(point.x * point.x + point.y * point.y);  // unit vector: no overflow
   // atan2 keeps alpha accurate near both poles, where acos(z) loses half the digits.
-  double alpha = std::atan2(rho, point.z);
-  return {alpha, rotate_to_xz_plane(point, direction, rho)};
+  return {std::atan2(rho, point.z), rotate_to_xz_plane(point, direction)};
 }
 
 }  // namespace stf

@@ -1,5 +1,7 @@
 #include "grid.h"
 
+#include "fastmath.h"
+
 #include <healpix_base.h>
 #include <wcslib/prj.h>
 
@@ -34,6 +36,11 @@ double triangle_solid_angle(const Vec3& a, const Vec3& b, const Vec3& c) {
 }
 
 }  // namespace
+
+void DirectionGrid::cells(const double* x, const double* y, const double* z, std::int64_t* out,
+                          int n) const {
+  for (int i = 0; i < n; ++i) out[i] = cell({x[i], y[i], z[i]});
+}
 
 std::unique_ptr<DirectionGrid> make_grid(const std::string& spec) {
   auto colon = spec.find(':');
@@ -155,7 +162,42 @@ HealpixGrid::~HealpixGrid() = default;
 std::string HealpixGrid::spec() const { return "healpix:" + std::to_string(nside_); }
 
 std::int64_t HealpixGrid::cell(const Vec3& d) const {
-  return base_->base.vec2pix(vec3(d.x, d.y, d.z));
+  std::int64_t pix;
+  cells(&d.x, &d.y, &d.z, &pix, 1);
+  return pix;
+}
+
+// RING-scheme pixel of unit directions. Both the equatorial belt (|z| <= 2/3) and the polar
+// caps are evaluated and the right one selected, so the loop has no branches. Near the poles
+// 1 - |z| is taken as rho^2 / (1 + |z|), which does not cancel.
+void HealpixGrid::cells(const double* x, const double* y, const double* z, std::int64_t* out,
+                        int n) const {
+  const double ns = nside_;
+  const std::int32_t nside = nside_, nl4 = 4 * nside_, ncap = 2 * nside_ * (nside_ - 1);
+  const std::int32_t npix = 12 * nside_ * nside_;
+  for (int i = 0; i < n; ++i) {
+    double zi = z[i], za = std::abs(zi);
+    double rho2 = x[i] * x[i] + y[i] * y[i];
+    double tt = fast_atan2(y[i], x[i]) * (2 / kPi);  // in (-2, 2]
+    tt = tt < 0 ? tt + 4 : tt;                       // in [0, 4)
+    tt = tt >= 4 ? 0 : tt;
+    // Equatorial belt. 32-bit integers (NSIDE <= 8192 keeps every index below 2^31) let the
+    // loop vectorise.
+    double t1 = ns * (0.5 + tt), t2 = ns * zi * 0.75;
+    std::int32_t jp = std::int32_t(t1 - t2), jm = std::int32_t(t1 + t2);
+    std::int32_t ir = nside + 1 + jp - jm;
+    std::int32_t kshift = 1 - (ir & 1);
+    std::int32_t ip = ((jp + jm - nside + kshift + 1 + 2 * nl4) >> 1) & (nl4 - 1);
+    std::int32_t belt = ncap + (ir - 1) * nl4 + ip;
+    // Polar caps: tmp = nside sqrt(3 (1 - |z|)).
+    double tp = tt - double(std::int32_t(tt));
+    double tmp = ns * std::sqrt(3 * rho2 / (1 + za));
+    std::int32_t pjp = std::int32_t(tp * tmp), pjm = std::int32_t((1 - tp) * tmp);
+    std::int32_t pir = pjp + pjm + 1;
+    std::int32_t pip = std::min(std::int32_t(tt * double(pir)), 4 * pir - 1);
+    std::int32_t cap = zi > 0 ? 2 * pir * (pir - 1) + pip : npix - 2 * pir * (pir + 1) + pip;
+    out[i] = za <= 2.0 / 3.0 ? belt : cap;
+  }
 }
 
 Vec3 HealpixGrid::centre(std::int64_t cell) const {

@@ -20,6 +20,10 @@ class DirectionGrid {
   virtual std::int64_t cell_count() const = 0;
   // The cell containing a unit direction. Every direction maps to exactly one cell.
   virtual std::int64_t cell(const Vec3& direction) const = 0;
+  // The cells of n unit directions given as coordinate arrays: the same as cell() on each,
+  // in one call so that the walk bins a batch of escapes without a virtual call apiece.
+  virtual void cells(const double* x, const double* y, const double* z, std::int64_t* out,
+                     int n) const;
   // Unit vector at the cell's centre.
   virtual Vec3 centre(std::int64_t cell) const = 0;
   // Solid angle of every cell (steradians); they sum to 4 pi.
@@ -55,6 +59,10 @@ class CscGrid final : public DirectionGrid {
   std::unique_ptr<Projection> prj_;
 };
 
+// Cells are found by stf's own branch-free RING-scheme lookup (Gorski et al. 2005, eq. 4-9 of
+// the HEALPix primer) with a polynomial atan2 accurate to ~1e-8 rad, several times faster than
+// healpix_cxx's vec2pix; it agrees with vec2pix except within ~1e-8 rad of a cell edge
+// (tested). Centres come from healpix_cxx.
 class HealpixGrid final : public DirectionGrid {
  public:
   explicit HealpixGrid(int nside);
@@ -62,6 +70,8 @@ class HealpixGrid final : public DirectionGrid {
   std::string spec() const override;
   std::int64_t cell_count() const override { return 12ll * nside_ * nside_; }
   std::int64_t cell(const Vec3& direction) const override;
+  void cells(const double* x, const double* y, const double* z, std::int64_t* out,
+             int n) const override;
   Vec3 centre(std::int64_t cell) const override;
   std::vector<double> solid_angles() const override;
 

@@ -31,10 +31,25 @@ AlphaBins::AlphaBins(int bins) : cos_edges_(bins + 1) {
 }
 
 int AlphaBins::bin(double cos_alpha) const {
-  // First edge with cos(edge) < cos_alpha, i.e. alpha < edge.
-  auto it = std::upper_bound(cos_edges_.begin() + 1, cos_edges_.end() - 1, cos_alpha,
-                             [](double z, double edge) { return z >= edge; });
-  return int(it - cos_edges_.begin()) - 1;
+  int b;
+  bins(&cos_alpha, &b, 1);
+  return b;
+}
+
+void AlphaBins::bins(const double* cos_alpha, int* out, int count) const {
+  // An estimate from a fast acos is off by at most one bin; the exact edge comparisons settle
+  // it, so the result depends only on cos_alpha against cos(edges). No branches: the loop
+  // vectorises.
+  const int n = bins();
+  const double* edge = cos_edges_.data();
+  for (int i = 0; i < count; ++i) {
+    double z = std::clamp(cos_alpha[i], -1.0, 1.0);
+    double alpha = fast_atan2(std::sqrt(std::max(0.0, 1 - z * z)), z);
+    int b = std::clamp(int(alpha * (n / kPi)), 0, n - 1);
+    b -= int((b > 0) & (z >= edge[b]));
+    b += int((b < n - 1) & (z < edge[b + 1]));
+    out[i] = b;
+  }
 }
 
 std::int64_t chunk_paths(std::int64_t paths) {
@@ -53,6 +68,9 @@ enum Event : std::int32_t { kNone = 0, kEscaped = 1, kAbsorbed = 2, kTruncated =
 struct alignas(64) Lanes {
   float px[kLanes], py[kLanes], pz[kLanes];  // position in the unit sphere
   float wx[kLanes], wy[kLanes], wz[kLanes];  // direction of flight
+  // Position and direction at the start of the last flight: where an escaping lane left from.
+  float from_px[kLanes], from_py[kLanes], from_pz[kLanes];
+  float from_wx[kLanes], from_wy[kLanes], from_wz[kLanes];
   std::uint32_t collisions[kLanes];
   std::uint32_t s0[kLanes], s1[kLanes], s2[kLanes], s3[kLanes];  // xoshiro128+ per lane
   std::int32_t active[kLanes];
@@ -93,8 +111,8 @@ void launch(Lanes& L, int i, std::int64_t path) {
 }
 
 // One free flight for every lane, then the collision it ends in: truncation, absorption or
-// scattering. Directions of escaping lanes are kept for the record.
-__attribute__((noinline)) void step(Lanes& L, const StepConstants& k) {
+// scattering.
+void step(Lanes& L, const StepConstants& k) {
 #pragma GCC ivdep
   for (int i = 0; i < kLanes; ++i) {
     std::uint32_t r_flight = xoshiro128_next(L.s0[i], L.s1[i], L.s2[i], L.s3[i]);
@@ -106,17 +124,11 @@ __attribute__((noinline)) void step(Lanes& L, const StepConstants& k) {
     float wx = L.wx[i], wy = L.wy[i], wz = L.wz[i];
     float flight = -fast_log(uniform01_open0(r_flight)) * k.inv_tau;
 
-    // Distance to the sphere along w; the two forms avoid cancellation for b > 0 and b < 0.
-    float b = px * wx + py * wy + pz * wz;
-    float c = px * px + py * py + pz * pz - 1.0f;
-    float root = std::sqrt(std::max(b * b - c, 0.0f));
-    float exit_ahead = -c / (b + root), exit_behind = root - b;
-    float to_exit = b > 0 ? exit_ahead : exit_behind;
-    bool escaped = flight >= to_exit;
-    float travel = escaped ? to_exit : flight;
-    px += travel * wx;
-    py += travel * wy;
-    pz += travel * wz;
+    // |p + s w|^2 is convex in s and below 1 at s = 0, so the flight leaves the sphere exactly
+    // when it ends outside: no distance to the boundary (a sqrt and a division) is needed
+    // here. EscapeBatch finds the exit point from where the flight started.
+    float qx = px + flight * wx, qy = py + flight * wy, qz = pz + flight * wz;
+    bool escaped = qx * qx + qy * qy + qz * qz >= 1.0f;
 
     // Masks combine with & and | (not && and ||) so that the loop has no branches.
     std::uint32_t n = L.collisions[i] + std::uint32_t(!escaped);
@@ -136,60 +148,71 @@ __attribute__((noinline)) void step(Lanes& L, const StepConstants& k) {
     float nx = u * e1x + v * e2x + hg.cos_theta * wx;
     float ny = u * e1y + v * e2y + hg.cos_theta * wy;
     float nz = u * e1z + v * e2z + hg.cos_theta * wz;
-    // Renormalise so that rounding does not accumulate over millions of collisions.
-    float inv_norm = 1.0f / std::sqrt(nx * nx + ny * ny + nz * nz);
+    // Renormalise so that rounding does not accumulate over millions of collisions. |n|^2 is
+    // 1 + O(1e-7), so the first-order inverse square root (3 - |n|^2) / 2 is exact to O(1e-14).
+    float inv_norm = 0.5f * (3.0f - (nx * nx + ny * ny + nz * nz));
 
-    L.px[i] = px;
-    L.py[i] = py;
-    L.pz[i] = pz;
-    L.wx[i] = escaped ? wx : nx * inv_norm;
-    L.wy[i] = escaped ? wy : ny * inv_norm;
-    L.wz[i] = escaped ? wz : nz * inv_norm;
+    // Every lane moves and turns; lanes with an event are relaunched afterwards. Unconditional
+    // stores: conditional ones become masked stores, which are slow on some x86 cores.
+    L.from_px[i] = px, L.from_py[i] = py, L.from_pz[i] = pz;
+    L.from_wx[i] = wx, L.from_wy[i] = wy, L.from_wz[i] = wz;
+    L.px[i] = qx, L.py[i] = qy, L.pz[i] = qz;
+    L.wx[i] = nx * inv_norm, L.wy[i] = ny * inv_norm, L.wz[i] = nz * inv_norm;
     L.collisions[i] = n;
     std::int32_t ev = escaped ? kEscaped : truncated ? kTruncated : absorbed ? kAbsorbed : kNone;
     L.event[i] = ev * L.active[i];
   }
 }
 
-// Table increments wait in a short queue and are applied together after prefetching: the
-// table is megabytes and escapes land at random cells, so one at a time each increment would
-// wait for memory on its own.
-class PendingCounts {
+// Escapes are binned in batches: the exit geometry runs as one loop the compiler vectorises,
+// the grid looks up all cells in one call, and the table increments are prefetched together
+// (the table is megabytes and escapes land at random cells, so one at a time each increment
+// would wait for memory on its own).
+class EscapeBatch {
  public:
-  explicit PendingCounts(Tally& tally) : tally_(tally) {}
-  ~PendingCounts() { flush(); }
-  void add(int half, std::size_t index) {
-    pending_[size_++] = {half, index};
-    if (size_ == kSize) flush();
+  EscapeBatch(const WalkSetup& setup, Tally& tally)
+      : setup_(setup), alpha_(setup.alpha_bins), tally_(tally) {}
+  ~EscapeBatch() { flush(); }
+
+  // Queues lane i, which escapes from its last collision point along its direction.
+  void add(const Lanes& L, int i) {
+    x_[n_] = L.from_px[i], y_[n_] = L.from_py[i], z_[n_] = L.from_pz[i];
+    dx_[n_] = L.from_wx[i], dy_[n_] = L.from_wy[i], dz_[n_] = L.from_wz[i];
+    half_[n_] = int(L.path[i] & 1);
+    if (++n_ == kSize) flush();
   }
+
   void flush() {
-    for (int j = 0; j < size_; ++j) __builtin_prefetch(&tally_.counts[pending_[j].half][pending_[j].index], 1);
-    for (int j = 0; j < size_; ++j) ++tally_.counts[pending_[j].half][pending_[j].index];
-    size_ = 0;
+    for (int j = 0; j < n_; ++j) {
+      Vec3 w = normalize({dx_[j], dy_[j], dz_[j]}), p{x_[j], y_[j], z_[j]};
+      double t = exit_distance(p, w);
+      Vec3 exit = normalize({p.x + t * w.x, p.y + t * w.y, p.z + t * w.z});
+      Vec3 d = rotate_to_xz_plane(exit, w);
+      dx_[j] = d.x, dy_[j] = d.y, dz_[j] = d.z;
+      z_[j] = exit.z;  // cos(alpha)
+    }
+    setup_.grid->cells(dx_, dy_, dz_, cell_, n_);
+    const std::size_t cells = std::size_t(setup_.grid->cell_count());
+    alpha_.bins(z_, bin_, n_);
+    for (int j = 0; j < n_; ++j) {
+      index_[j] = std::size_t(bin_[j]) * cells + std::size_t(cell_[j]);
+      __builtin_prefetch(&tally_.counts[half_[j]][index_[j]], 1);
+    }
+    for (int j = 0; j < n_; ++j) ++tally_.counts[half_[j]][index_[j]];
+    n_ = 0;
   }
 
  private:
-  static constexpr int kSize = 64;
-  struct Entry {
-    int half;
-    std::size_t index;
-  };
+  static constexpr int kSize = 128;
+  const WalkSetup& setup_;
+  const AlphaBins alpha_;
   Tally& tally_;
-  Entry pending_[kSize];
-  int size_ = 0;
+  int n_ = 0;
+  double x_[kSize], y_[kSize], z_[kSize], dx_[kSize], dy_[kSize], dz_[kSize];
+  int half_[kSize], bin_[kSize];
+  std::int64_t cell_[kSize];
+  std::size_t index_[kSize];
 };
-
-// Bins one escape: alpha bin from the exit point, cell from the exit direction after the
-// -beta rotation.
-void record_escape(const Lanes& L, int i, const WalkSetup& setup, const AlphaBins& alpha,
-                   PendingCounts& counts) {
-  Vec3 point = normalize({L.px[i], L.py[i], L.pz[i]});
-  Vec3 direction = normalize({L.wx[i], L.wy[i], L.wz[i]});
-  double rho = std::sqrt(point.x * point.x + point.y * point.y);
-  int bin = alpha.bin(point.z);
-  std::int64_t cell = setup.grid->cell(rotate_to_xz_plane(point, direction, rho));
-  counts.add(int(L.path[i] & 1), std::size_t(bin) * std::size_t(setup.grid->cell_count()) + std::size_t(cell));
-}
 
 }  // namespace
 
@@ -197,8 +220,7 @@ bool walk_chunk(const WalkSetup& setup, std::uint64_t seed, std::uint64_t chunk,
                 std::int64_t first_path, std::int64_t count, Tally& tally,
                 const WalkControl& control) {
   const StepConstants k = make_constants(setup);
-  const AlphaBins alpha(setup.alpha_bins);
-  PendingCounts pending(tally);
+  EscapeBatch escapes(setup, tally);
   Lanes L;
   std::int64_t next = 0;
   int in_flight = 0;
@@ -225,7 +247,7 @@ bool walk_chunk(const WalkSetup& setup, std::uint64_t seed, std::uint64_t chunk,
     for (int i = 0; i < kLanes; ++i) {
       if (L.event[i] == kNone) continue;
       switch (L.event[i]) {
-        case kEscaped: record_escape(L, i, setup, alpha, pending); ++tally.escaped; break;
+        case kEscaped: escapes.add(L, i); ++tally.escaped; break;
         case kAbsorbed: ++tally.absorbed; break;
         default: ++tally.truncated; break;
       }

@@ -31,8 +31,11 @@ class AlphaBins {
  public:
   explicit AlphaBins(int bins);
   int bins() const { return int(cos_edges_.size()) - 1; }
-  // Bin of the exit point with z = cos(alpha); bin b holds alpha in [pi b / n, pi (b+1) / n).
+  // Bin of the exit point with z = cos(alpha): bin b holds cos(alpha) in
+  // [cos(pi (b+1) / n), cos(pi b / n)), the first bin also z = 1.
   int bin(double cos_alpha) const;
+  // bin() of `count` values at once.
+  void bins(const double* cos_alpha, int* out, int count) const;
 
  private:
   std::vector<double> cos_edges_;  // decreasing, cos(pi b / n)

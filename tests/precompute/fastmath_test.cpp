@@ -34,5 +34,20 @@ TEST(FastMath, SinCosOfTwoPiU) {
   EXPECT_LT(worst, 3e-7);
 }
 
+TEST(FastMath, Atan2WithinTwoNanoRadiansEverywhere) {
+  double worst = 0;
+  for (int k = 0; k <= 200000; ++k) {
+    double angle = -3.14159265358979323846 + 2 * 3.14159265358979323846 * k / 200000;
+    for (double r : {1e-300, 1e-8, 1.0, 1e8}) {
+      double y = r * std::sin(angle), x = r * std::cos(angle);
+      worst = std::max(worst, std::abs(fast_atan2(y, x) - std::atan2(y, x)));
+    }
+  }
+  EXPECT_LT(worst, 2e-9);
+  EXPECT_EQ(fast_atan2(0.0, 0.0), 0.0);
+  EXPECT_NEAR(fast_atan2(0.0, -1.0), 3.14159265358979323846, 1e-15);
+  EXPECT_NEAR(fast_atan2(-1.0, 0.0), -1.5707963267948966, 1e-15);
+}
+
 }  // namespace
 }  // namespace stf

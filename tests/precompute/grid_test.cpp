@@ -1,6 +1,7 @@
 #include "grid.h"
 
 #include <gtest/gtest.h>
+#include <healpix_base.h>
 #include <wcslib/prj.h>
 
 #include <cmath>
@@ -143,6 +144,45 @@ TEST(Grid, HealpixMatchesItsOwnCentresAndIsEqualArea) {
   // of four cells, not the centre of one wide cell.
   std::int64_t north = grid.cell({0, 0, 1});
   EXPECT_LT(north, 4);
+}
+
+// stf's own RING lookup against healpix_cxx's vec2pix: identical but within ~1e-8 rad of a
+// cell edge, where the two atan2s may round differently.
+TEST(Grid, HealpixLookupAgreesWithHealpixCxx) {
+  std::uint64_t state = test::test_seed(23);
+  SCOPED_TRACE(test::seed_trace(state));
+  for (int nside : {1, 2, 16, 256, 8192}) {
+    HealpixGrid grid(nside);
+    T_Healpix_Base<int64> reference(nside, RING, SET_NSIDE);
+    int disagree = 0;
+    const int n = 200'000;
+    for (int i = 0; i < n; ++i) {
+      Vec3 d = uniform_direction(state);
+      if (grid.cell(d) != reference.vec2pix(vec3(d.x, d.y, d.z))) ++disagree;
+    }
+    // Cell edges total ~25 nside rad; a band of +-1e-8 rad around them is ~4e-8 nside of the
+    // sphere. The bound allows 2.5 times that.
+    EXPECT_LE(disagree, 1 + n * 1e-7 * nside) << "nside " << nside;
+    for (Vec3 d : {Vec3{0, 0, 1}, Vec3{0, 0, -1}, Vec3{1, 0, 0}, Vec3{-1, 0, 0}, Vec3{0, -1, 0}}) {
+      std::int64_t c = grid.cell(d);
+      EXPECT_TRUE(c >= 0 && c < grid.cell_count()) << "nside " << nside;
+    }
+  }
+}
+
+TEST(Grid, BatchLookupEqualsSingleLookup) {
+  std::uint64_t state = test::test_seed(24);
+  for (const char* spec : {"csc:7", "healpix:8"}) {
+    auto grid = make_grid(spec);
+    std::vector<double> x(257), y(257), z(257);
+    std::vector<std::int64_t> out(257);
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      Vec3 d = uniform_direction(state);
+      x[i] = d.x, y[i] = d.y, z[i] = d.z;
+    }
+    grid->cells(x.data(), y.data(), z.data(), out.data(), int(x.size()));
+    for (std::size_t i = 0; i < x.size(); ++i) EXPECT_EQ(out[i], grid->cell({x[i], y[i], z[i]})) << spec;
+  }
 }
 
 }  // namespace
