@@ -9,6 +9,7 @@
 
 #include "cli.h"
 #include "grid.h"
+#include "h5io.h"
 #include "table.h"
 
 namespace stf::cli {
@@ -32,17 +33,6 @@ std::vector<double> cell_density(const Table& t, int bin) {
   for (std::int64_t c = 0; c < t.cells; ++c)
     density[c] = weight[std::size_t(bin) * t.cells + c] / (total * t.solid_angle[c]);
   return density;
-}
-
-void put(H5::Group& g, const char* name, const std::vector<double>& v, std::vector<hsize_t> dims) {
-  H5::DataSpace space(int(dims.size()), dims.data());
-  g.createDataSet(name, H5::PredType::NATIVE_DOUBLE, space).write(v.data(), H5::PredType::NATIVE_DOUBLE);
-}
-
-void put_attr(H5::Group& g, const char* name, const std::string& value) {
-  H5::StrType type(H5::PredType::C_S1, H5T_VARIABLE);
-  const char* c = value.c_str();
-  g.createAttribute(name, type, H5::DataSpace()).write(type, &c);
 }
 
 // One panel's data: the density raster over (theta, phi) from each pixel's own cell, and the
@@ -69,17 +59,17 @@ void write_panel(H5::H5File& file, int index, const std::string& path, double al
     phi[c] = std::atan2(v[1], v[0]);
   }
   H5::Group g = file.createGroup("/panel" + std::to_string(index));
-  put(g, "raster", raster, {hsize_t(height), hsize_t(width)});
-  put(g, "cell_theta", theta, {hsize_t(t.cells)});
-  put(g, "cell_phi", phi, {hsize_t(t.cells)});
-  put(g, "cell_density", density, {hsize_t(t.cells)});
+  h5::put_dataset(g, "raster", {hsize_t(height), hsize_t(width)}, raster.data());
+  h5::put_dataset(g, "cell_theta", {hsize_t(t.cells)}, theta.data());
+  h5::put_dataset(g, "cell_phi", {hsize_t(t.cells)}, phi.data());
+  h5::put_dataset(g, "cell_density", {hsize_t(t.cells)}, density.data());
   char title[256];
   std::snprintf(title, sizeof title,
                 "%s  sigma_s=%g sigma_a=%g g=%g  alpha in [%.1f, %.1f) deg  %.3g paths",
                 t.grid.c_str(), t.medium.sigma_s, t.medium.sigma_a, t.medium.g,
                 t.alpha_edges[bin] * 180 / kPi, t.alpha_edges[bin + 1] * 180 / kPi,
                 double(t.paths));
-  put_attr(g, "title", title);
+  h5::put_attr(g, "title", std::string(title));
 }
 
 std::string tools_dir() {

@@ -1,23 +1,12 @@
-// Small vector type and the frame conventions of a shell transport table.
+// The frame conventions of a shell transport table.
 #pragma once
 
 #include <algorithm>
 #include <cmath>
 
+#include "stf/vec3.h"
+
 namespace stf {
-
-inline constexpr double kPi = 3.14159265358979323846;
-
-struct Vec3 {
-  double x = 0, y = 0, z = 0;
-};
-
-inline double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-inline double length(const Vec3& v) { return std::sqrt(dot(v, v)); }
-inline Vec3 normalize(const Vec3& v) {
-  double inv = 1.0 / length(v);
-  return {v.x * inv, v.y * inv, v.z * inv};
-}
 
 // An escape as the table stores it: the exit point is rotated by -beta about z into the x-z
 // plane (x >= 0), so only alpha = angle(exit point, +z) remains, and the exit direction is

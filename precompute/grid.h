@@ -12,6 +12,14 @@
 
 namespace stf {
 
+// Sub-cells of every cell: `per_cell` consecutive points per cell (cell-major), each the
+// centre direction and solid angle of a sub-cell; the sub-cells of a cell partition it.
+struct CellQuadrature {
+  int per_cell = 1;
+  std::vector<Vec3> point;
+  std::vector<double> weight;
+};
+
 class DirectionGrid {
  public:
   virtual ~DirectionGrid() = default;
@@ -28,6 +36,8 @@ class DirectionGrid {
   virtual Vec3 centre(std::int64_t cell) const = 0;
   // Solid angle of every cell (steradians); they sum to 4 pi.
   virtual std::vector<double> solid_angles() const = 0;
+  // Each cell split 2^level times along each side: for integrating a density over cells.
+  virtual CellQuadrature quadrature(int level) const = 0;
 };
 
 // Parses "csc:N" (1 <= N <= 1024) or "healpix:NSIDE" (a power of two, 1 <= NSIDE <= 8192).
@@ -46,6 +56,7 @@ class CscGrid final : public DirectionGrid {
   std::int64_t cell(const Vec3& direction) const override;
   Vec3 centre(std::int64_t cell) const override;
   std::vector<double> solid_angles() const override;
+  CellQuadrature quadrature(int level) const override;
 
   int n() const { return n_; }
   // Centre of `face` in WCSLIB's projection plane, in degrees.
@@ -54,6 +65,7 @@ class CscGrid final : public DirectionGrid {
   Vec3 face_point(int face, double xf, double yf) const;
 
  private:
+  CellQuadrature geodesic_subdivision(int level) const;
   int n_;
   struct Projection;
   std::unique_ptr<Projection> prj_;
@@ -74,6 +86,7 @@ class HealpixGrid final : public DirectionGrid {
              int n) const override;
   Vec3 centre(std::int64_t cell) const override;
   std::vector<double> solid_angles() const override;
+  CellQuadrature quadrature(int level) const override;
 
  private:
   int nside_;

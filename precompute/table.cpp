@@ -4,6 +4,8 @@
 
 #include <stdexcept>
 
+#include "h5io.h"
+
 namespace stf {
 
 std::vector<double> Table::weight() const {
@@ -16,78 +18,9 @@ namespace {
 
 constexpr int kFormatVersion = 1;
 
-template <typename T>
-const H5::PredType& h5_type();
-template <>
-const H5::PredType& h5_type<double>() { return H5::PredType::NATIVE_DOUBLE; }
-template <>
-const H5::PredType& h5_type<std::int64_t>() { return H5::PredType::NATIVE_INT64; }
-template <>
-const H5::PredType& h5_type<int>() { return H5::PredType::NATIVE_INT; }
-
-template <typename T>
-void put_attr(H5::H5Object& obj, const char* name, T value) {
-  obj.createAttribute(name, h5_type<T>(), H5::DataSpace()).write(h5_type<T>(), &value);
-}
-
-void put_attr(H5::H5Object& obj, const char* name, const std::string& value) {
-  H5::StrType type(H5::PredType::C_S1, H5T_VARIABLE);
-  type.setCset(H5T_CSET_UTF8);
-  const char* c = value.c_str();
-  obj.createAttribute(name, type, H5::DataSpace()).write(type, &c);
-}
-
-template <typename T>
-T get_attr(const H5::H5Object& obj, const char* name) {
-  if (!obj.attrExists(name)) throw std::runtime_error(std::string("missing attribute ") + name);
-  T value{};
-  obj.openAttribute(name).read(h5_type<T>(), &value);
-  return value;
-}
-
-std::string get_string_attr(const H5::H5Object& obj, const char* name) {
-  if (!obj.attrExists(name)) throw std::runtime_error(std::string("missing attribute ") + name);
-  H5::Attribute attr = obj.openAttribute(name);
-  std::string value;
-  attr.read(attr.getStrType(), value);
-  return value;
-}
-
-// Row-major dataset of doubles; chunked and deflated when large (tables are mostly zeros far
-// from the forward lobe).
-void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
-                 const double* data) {
-  H5::DataSpace space(int(dims.size()), dims.data());
-  H5::DSetCreatPropList props;
-  hsize_t total = 1;
-  for (hsize_t d : dims) total *= d;
-  if (total >= 4096) {
-    std::vector<hsize_t> chunk(dims);
-    chunk.front() = 1;
-    props.setChunk(int(chunk.size()), chunk.data());
-    props.setShuffle();
-    props.setDeflate(4);
-  }
-  group.createDataSet(name, H5::PredType::NATIVE_DOUBLE, space, props)
-      .write(data, H5::PredType::NATIVE_DOUBLE);
-}
-
-std::vector<double> get_dataset(const H5::H5File& file, const char* path,
-                                const std::vector<hsize_t>& expect) {
-  if (!file.nameExists(path)) throw std::runtime_error(std::string("missing dataset ") + path);
-  H5::DataSet set = file.openDataSet(path);
-  H5::DataSpace space = set.getSpace();
-  std::vector<hsize_t> dims(space.getSimpleExtentNdims());
-  space.getSimpleExtentDims(dims.data());
-  if (dims != expect) throw std::runtime_error(std::string("unexpected shape of ") + path);
-  hsize_t total = 1;
-  for (hsize_t d : dims) total *= d;
-  std::vector<double> data(total);
-  set.read(data.data(), H5::PredType::NATIVE_DOUBLE);
-  return data;
-}
-
 }  // namespace
+
+using namespace h5;
 
 void write_table(const Table& t, const std::string& path) {
   try {
@@ -135,29 +68,27 @@ Table read_table(const std::string& path) {
   try {
     H5::Exception::dontPrint();
     H5::H5File file(path, H5F_ACC_RDONLY);
-    if (get_string_attr(file, "format") != "stf-table")
+    if (get_string(file, "format") != "stf-table")
       throw std::runtime_error("not an stf table (format attribute is not 'stf-table')");
-    if (int v = get_attr<int>(file, "format_version"); v != kFormatVersion)
+    if (int v = get_int(file, "format_version"); v != kFormatVersion)
       throw std::runtime_error("unsupported table format_version " + std::to_string(v));
     Table t;
-    t.medium = {get_attr<double>(file, "sigma_s"), get_attr<double>(file, "sigma_a"),
-                get_attr<double>(file, "g"), get_attr<double>(file, "radius")};
-    t.paths = get_attr<std::int64_t>(file, "paths");
-    t.seed = get_attr<std::int64_t>(file, "seed");
-    t.max_scatter = get_attr<std::int64_t>(file, "max_scatter");
-    t.safety_cap = get_attr<std::int64_t>(file, "safety_cap");
-    t.grid = get_string_attr(file, "grid");
-    t.escaped_weight = get_attr<double>(file, "escaped_weight");
-    t.absorbed_weight = get_attr<double>(file, "absorbed_weight");
-    t.truncated_weight = get_attr<double>(file, "truncated_weight");
-    t.collisions = get_attr<std::int64_t>(file, "collisions");
-    t.runtime_s = get_attr<double>(file, "runtime_s");
-    t.generator = get_string_attr(file, "generator");
+    t.medium = {get_double(file, "sigma_s"), get_double(file, "sigma_a"),
+                get_double(file, "g"), get_double(file, "radius")};
+    t.paths = get_int64(file, "paths");
+    t.seed = get_int64(file, "seed");
+    t.max_scatter = get_int64(file, "max_scatter");
+    t.safety_cap = get_int64(file, "safety_cap");
+    t.grid = get_string(file, "grid");
+    t.escaped_weight = get_double(file, "escaped_weight");
+    t.absorbed_weight = get_double(file, "absorbed_weight");
+    t.truncated_weight = get_double(file, "truncated_weight");
+    t.collisions = get_int64(file, "collisions");
+    t.runtime_s = get_double(file, "runtime_s");
+    t.generator = get_string(file, "generator");
 
-    H5::DataSpace space = file.openDataSet("/escape/weight").getSpace();
-    hsize_t dims[2] = {0, 0};
-    if (space.getSimpleExtentNdims() != 2) throw std::runtime_error("/escape/weight is not 2D");
-    space.getSimpleExtentDims(dims);
+    std::vector<hsize_t> dims = dataset_shape(file, "/escape/weight");
+    if (dims.size() != 2) throw std::runtime_error("/escape/weight is not 2D");
     t.alpha_bins = int(dims[0]);
     t.cells = std::int64_t(dims[1]);
     std::vector<double> halves = get_dataset(file, "/escape/weight_half", {2, dims[0], dims[1]});

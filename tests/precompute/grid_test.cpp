@@ -146,6 +146,28 @@ TEST(Grid, HealpixMatchesItsOwnCentresAndIsEqualArea) {
   EXPECT_LT(north, 4);
 }
 
+// Sub-cells partition their cell: weights sum to the cell's solid angle, and every sub-cell
+// centre lies in its own cell.
+TEST(Grid, QuadratureSubCellsPartitionEachCell) {
+  for (const char* spec : {"csc:3", "csc:10", "healpix:2", "healpix:8"}) {
+    auto grid = make_grid(spec);
+    std::vector<double> omega = grid->solid_angles();
+    for (int level : {0, 1, 3}) {
+      CellQuadrature q = grid->quadrature(level);
+      ASSERT_EQ(q.per_cell, 1 << (2 * level));
+      for (std::int64_t c = 0; c < grid->cell_count(); ++c) {
+        double sum = 0;
+        for (int j = 0; j < q.per_cell; ++j) {
+          std::size_t k = std::size_t(c) * q.per_cell + j;
+          sum += q.weight[k];
+          ASSERT_EQ(grid->cell(q.point[k]), c) << spec << " level " << level;
+        }
+        EXPECT_NEAR(sum, omega[c], 1e-12 * omega[c]) << spec << " level " << level;
+      }
+    }
+  }
+}
+
 // stf's own RING lookup against healpix_cxx's vec2pix: identical but within ~1e-8 rad of a
 // cell edge, where the two atan2s may round differently.
 TEST(Grid, HealpixLookupAgreesWithHealpixCxx) {

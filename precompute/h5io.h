@@ -1,0 +1,36 @@
+// Small helpers over the HDF5 C++ API shared by the table, model and plot files.
+#pragma once
+
+#include <H5Cpp.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace stf::h5 {
+
+void put_attr(H5::H5Object& obj, const char* name, double value);
+void put_attr(H5::H5Object& obj, const char* name, std::int64_t value);
+void put_attr(H5::H5Object& obj, const char* name, int value);
+void put_attr(H5::H5Object& obj, const char* name, const std::string& value);
+
+double get_double(const H5::H5Object& obj, const char* name);
+std::int64_t get_int64(const H5::H5Object& obj, const char* name);
+int get_int(const H5::H5Object& obj, const char* name);
+std::string get_string(const H5::H5Object& obj, const char* name);
+bool has_attr(const H5::H5Object& obj, const char* name);
+
+// Row-major dataset; chunked and deflated when large (tables are mostly zeros far from the
+// forward lobe).
+void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
+                 const double* data);
+void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
+                 const std::int32_t* data);
+// Reads a dataset and checks its shape; an empty `expect` accepts any shape.
+std::vector<double> get_dataset(const H5::H5File& file, const char* path,
+                                const std::vector<hsize_t>& expect);
+std::vector<std::int32_t> get_int_dataset(const H5::H5File& file, const char* path,
+                                          const std::vector<hsize_t>& expect);
+std::vector<hsize_t> dataset_shape(const H5::H5File& file, const char* path);
+
+}  // namespace stf::h5

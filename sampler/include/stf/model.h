@@ -1,0 +1,60 @@
+// A fitted shell transport function: what `stf fit` produces and a renderer samples.
+//
+// Per alpha bin (exit-point angle alpha, linear bins on [0, pi]) a density over exit
+// directions w' per steradian, in the frame where the start direction is +z and the exit
+// point lies in the x-z plane (x >= 0); across bins the alpha marginal; and the escape
+// probability the renderer multiplies into its throughput.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "stf/vec3.h"
+#include "stf/vmf.h"
+
+namespace stf {
+
+enum class ModelKind { kVmf, kSh };
+
+// How the direction model of one alpha bin came about.
+enum class BinStatus : std::int32_t {
+  kFitted = 0,    // fitted to the bin's own escapes
+  kBorrowed = 1,  // too few escapes: copied from the nearest fitted bin
+  kEmpty = 2,     // no bin has escapes (a model of an all-absorbing medium): uniform
+};
+
+struct StfModel {
+  ModelKind kind = ModelKind::kVmf;
+  // The medium (of the source table) and its dimensionless numbers.
+  double sigma_s = 0, sigma_a = 0, g = 0, radius = 1, tau = 0, albedo = 0;
+  double escape_probability = 0, absorbed_fraction = 0, truncated_fraction = 0;
+
+  std::vector<double> alpha_edges;        // [bins + 1], 0 .. pi
+  std::vector<double> alpha_probability;  // [bins], sums to 1: P(exit point in bin)
+  std::vector<BinStatus> status;          // [bins]
+
+  // kVmf: `lobes` lobes per bin, [bins * lobes].
+  int lobes = 0;
+  std::vector<VmfLobe> vmf;
+
+  // kSh: real SH coefficients per bin, [bins * (band_limit + 1)^2], windowed and smoothed.
+  // The density used is max(SH, 0) tabulated at the centres of an equal-area (z, phi) grid
+  // of sh_nz x 2 sh_nz cells and renormalised: rebuild_sh_tables() derives it.
+  int band_limit = 0;
+  std::vector<double> sh;
+  int sh_nz = 0;
+  std::vector<float> sh_table;  // [bins * sh_nz * 2 sh_nz], density per steradian
+
+  int bins() const { return int(alpha_probability.size()); }
+  // Density p(w' | alpha bin) per steradian: the vMF mixture, or the tabulated clamped SH.
+  double direction_pdf(int bin, const Vec3& w) const;
+  void rebuild_sh_tables();
+  // Size of the model's packed binary form: the parameters as float32 plus a fixed header.
+  std::int64_t packed_bytes() const;
+};
+
+// Cell of the equal-area (z, phi) grid with nz rows in z and 2 nz columns in phi.
+int equal_area_cell(int nz, const Vec3& w);
+
+}  // namespace stf
