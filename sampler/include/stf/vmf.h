@@ -1,6 +1,7 @@
 // von Mises-Fisher lobes on the unit sphere: density and mixtures.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -25,6 +26,33 @@ inline T vmf_pdf(const T& kappa, const T& c) {
   using std::expm1;
   T norm = kappa < T(1e-12) ? T(0.5) + T(0.5) * kappa : kappa / -expm1(T(-2) * kappa);
   return norm / T(2 * kPi) * exp(kappa * (c - T(1)));
+}
+
+// Unit vectors completing `n` to a right-handed orthonormal frame (Duff et al. 2017).
+inline void orthonormal_basis(const Vec3& n, Vec3& b1, Vec3& b2) {
+  double sign = std::copysign(1.0, n.z), a = -1 / (sign + n.z), b = n.x * n.y * a;
+  b1 = {1 + sign * n.x * n.x * a, sign * b, -sign * n.x};
+  b2 = {b, sign + n.y * n.y * a, -n.y};
+}
+
+// cos(angle to the mean) of a vMF sample from u in [0, 1), by the stable inversion
+// 1 + log(u + (1 - u) e^{-2 kappa}) / kappa (W. Jakob 2012), written with log1p and expm1 so
+// that kappa -> 0 tends to the uniform 2u - 1 and kappa ~ 1e7 does not underflow to -inf.
+inline double sample_vmf_cos(double kappa, double u) {
+  if (kappa < 1e-300) return 2 * u - 1;
+  double c = 1 + std::log1p((1 - u) * std::expm1(-2 * kappa)) / kappa;
+  return c < -1 ? -1 : (c > 1 ? 1 : c);
+}
+
+// A vMF direction from (u0, u1) in [0, 1)^2.
+inline Vec3 sample_vmf(const VmfLobe& lobe, double u0, double u1) {
+  double c = sample_vmf_cos(lobe.kappa, u0), s = std::sqrt(std::max(0.0, 1 - c * c));
+  double phi = 2 * kPi * u1;
+  Vec3 b1, b2;
+  orthonormal_basis(lobe.mean, b1, b2);
+  double x = s * std::cos(phi), y = s * std::sin(phi);
+  return normalize({x * b1.x + y * b2.x + c * lobe.mean.x, x * b1.y + y * b2.y + c * lobe.mean.y,
+                    x * b1.z + y * b2.z + c * lobe.mean.z});
 }
 
 inline double mixture_pdf(const std::vector<VmfLobe>& lobes, const Vec3& w) {

@@ -1,0 +1,298 @@
+#include "vmf_fit.h"
+
+#include <ceres/ceres.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+#include "cell_probability.h"
+
+namespace stf::fit {
+
+namespace {
+
+Vec3 cell_centre(const CellQuadrature& q, std::size_t c) {
+  Vec3 s{0, 0, 0};
+  for (int j = 0; j < q.per_cell; ++j) {
+    const Vec3& p = q.point[c * q.per_cell + j];
+    double w = q.weight[c * q.per_cell + j];
+    s = {s.x + w * p.x, s.y + w * p.y, s.z + w * p.z};
+  }
+  return normalize(s);
+}
+
+// d log(norm(kappa)) / d kappa for norm = kappa / (2 pi (1 - e^{-2 kappa})):
+// 1/kappa - 2 / expm1(2 kappa), whose two terms cancel as kappa -> 0; there the series.
+double dlog_norm(double kappa) {
+  if (kappa < 1e-3) return 1 - kappa / 3;
+  return 1 / kappa - 2 / std::expm1(2 * kappa);
+}
+
+// Signed deviance residual of count n against expectation mu, and d residual / d mu:
+// sum r^2 is the Poisson deviance, so least squares on r is maximum likelihood.
+void deviance_residual(double n, double mu, double& r, double& dr) {
+  mu = std::max(mu, 1e-300);
+  if (n <= 0) {
+    r = -std::sqrt(2 * mu);
+    dr = -1 / std::sqrt(2 * mu);
+    return;
+  }
+  double d = 2 * (n * std::log(n / mu) - (n - mu));
+  if (d < 1e-12 * n) {  // mu ~ n: r ~ (n - mu) / sqrt(n)
+    r = (n - mu) / std::sqrt(n);
+    dr = -1 / std::sqrt(n);
+    return;
+  }
+  double root = std::sqrt(d);
+  r = n > mu ? root : -root;
+  dr = -std::abs(mu - n) / (mu * root);
+}
+
+// Residuals: one per cell with counts, and one for all empty cells together (their deviance
+// is 2 sum mu = 2 N (1 - sum of the other cells' probabilities)). Parameter blocks: softmax
+// logits [K], log kappa [K], then the K mean directions [3] each (on SphereManifold<3>).
+class PoissonDeviance final : public ceres::CostFunction {
+ public:
+  PoissonDeviance(const CellQuadrature& q, const std::vector<double>& counts, int lobes)
+      : q_(q), lobes_(lobes), row_of_cell_(counts.size(), -1) {
+    for (std::size_t c = 0; c < counts.size(); ++c) {
+      total_ += counts[c];
+      if (counts[c] > 0) {
+        row_of_cell_[c] = int(count_.size());
+        count_.push_back(counts[c]);
+      }
+    }
+    set_num_residuals(int(count_.size()) + 1);
+    mutable_parameter_block_sizes()->push_back(lobes);
+    mutable_parameter_block_sizes()->push_back(lobes);
+    for (int k = 0; k < lobes; ++k) mutable_parameter_block_sizes()->push_back(3);
+  }
+
+  bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
+    const int K = lobes_, rows = int(count_.size());
+    std::vector<double> w(K);
+    double max_logit = *std::max_element(params[0], params[0] + K), sum = 0;
+    for (int k = 0; k < K; ++k) sum += (w[k] = std::exp(params[0][k] - max_logit));
+    for (double& v : w) v /= sum;
+
+    // Per lobe: cell masses on the rows and totals over the sphere, with derivatives by
+    // log kappa and by the mean.
+    std::vector<double> mass(std::size_t(K) * rows, 0), d_theta(mass.size(), 0), d_mean(3 * mass.size(), 0);
+    std::vector<double> total(K, 0), total_theta(K, 0), total_mean(3 * K, 0);
+    for (int k = 0; k < K; ++k) {
+      const double kappa = std::exp(params[1][k]);
+      const Vec3 mean = normalize({params[2 + k][0], params[2 + k][1], params[2 + k][2]});
+      for (std::size_t c = 0; c < row_of_cell_.size(); ++c) {
+        const int row = row_of_cell_[c];
+        for (int j = 0; j < q_.per_cell; ++j) {
+          const std::size_t i = c * q_.per_cell + j;
+          const double a = q_.weight[i], stretch = 1 + kappa * a / 12, ke = kappa / stretch;
+          const Vec3& x = q_.point[i];
+          const double cosine = dot(mean, x);
+          const double v = a * vmf_pdf(ke, cosine);
+          // d v / d log kappa = v (dlog_norm(ke) + cos - 1) (d ke / d kappa) kappa.
+          const double vt = v * (dlog_norm(ke) + cosine - 1) * kappa / (stretch * stretch);
+          const double vm = v * ke;  // d v / d mean = vm * x
+          total[k] += v;
+          total_theta[k] += vt;
+          total_mean[3 * k] += vm * x.x, total_mean[3 * k + 1] += vm * x.y, total_mean[3 * k + 2] += vm * x.z;
+          if (row < 0) continue;
+          const std::size_t r = std::size_t(k) * rows + row;
+          mass[r] += v;
+          d_theta[r] += vt;
+          d_mean[3 * r] += vm * x.x, d_mean[3 * r + 1] += vm * x.y, d_mean[3 * r + 2] += vm * x.z;
+        }
+      }
+    }
+
+    // Probabilities, residuals, d residual / d mu.
+    std::vector<double> p(rows, 0), dr(rows + 1);
+    double p_rest = 1;
+    for (int row = 0; row < rows; ++row) {
+      for (int k = 0; k < K; ++k) p[row] += w[k] * mass[std::size_t(k) * rows + row] / total[k];
+      p_rest -= p[row];
+      deviance_residual(count_[row], total_ * p[row], residuals[row], dr[row]);
+    }
+    deviance_residual(0, total_ * std::max(p_rest, 0.0), residuals[rows], dr[rows]);
+    if (!jacobians) return true;
+
+    // d p_row / d parameter, then the chain rule; the empty-cells residual moves opposite to
+    // the sum of the others.
+    auto fill = [&](int block, int width, auto dp) {
+      if (!jacobians[block]) return;
+      double* J = jacobians[block];
+      std::vector<double> rest(width, 0);
+      for (int row = 0; row < rows; ++row) {
+        for (int col = 0; col < width; ++col) {
+          double d = dp(row, col);
+          J[row * width + col] = dr[row] * total_ * d;
+          rest[col] -= d;
+        }
+      }
+      for (int col = 0; col < width; ++col) J[rows * width + col] = p_rest > 0 ? dr[rows] * total_ * rest[col] : 0;
+    };
+    fill(0, K, [&](int row, int j) { return w[j] * (mass[std::size_t(j) * rows + row] / total[j] - p[row]); });
+    fill(1, K, [&](int row, int k) {
+      std::size_t r = std::size_t(k) * rows + row;
+      return w[k] * (d_theta[r] * total[k] - mass[r] * total_theta[k]) / (total[k] * total[k]);
+    });
+    for (int k = 0; k < K; ++k) {
+      fill(2 + k, 3, [&](int row, int axis) {
+        std::size_t r = std::size_t(k) * rows + row;
+        return w[k] * (d_mean[3 * r + axis] * total[k] - mass[r] * total_mean[3 * k + axis]) / (total[k] * total[k]);
+      });
+    }
+    return true;
+  }
+
+ private:
+  const CellQuadrature& q_;
+  int lobes_;
+  std::vector<int> row_of_cell_;
+  std::vector<double> count_;
+  double total_ = 0;
+};
+
+// Banerjee et al. (2005): kappa from the mean resultant length R in 3D.
+double kappa_from_resultant(double r) {
+  r = std::clamp(r, 0.0, 1 - 1e-12);
+  return r * (3 - r * r) / (1 - r * r);
+}
+
+}  // namespace
+
+std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const CellQuadrature& q, int K) {
+  const std::size_t cells = counts.size();
+  std::vector<Vec3> centre(cells);
+  for (std::size_t c = 0; c < cells; ++c) centre[c] = cell_centre(q, c);
+  // Seeds: the fullest cell, then farthest-first weighted by counts.
+  std::vector<Vec3> mean;
+  mean.push_back(centre[std::max_element(counts.begin(), counts.end()) - counts.begin()]);
+  while (int(mean.size()) < K) {
+    double best = -1;
+    std::size_t pick = 0;
+    for (std::size_t c = 0; c < cells; ++c) {
+      double nearest = -1;
+      for (const Vec3& m : mean) nearest = std::max(nearest, dot(m, centre[c]));
+      double score = counts[c] * (1 - nearest);
+      if (score > best) best = score, pick = c;
+    }
+    mean.push_back(centre[pick]);
+  }
+  std::vector<VmfLobe> lobes(K);
+  std::vector<int> owner(cells, 0);
+  for (int iteration = 0; iteration < 20; ++iteration) {
+    for (std::size_t c = 0; c < cells; ++c) {
+      int best = 0;
+      for (int k = 1; k < K; ++k)
+        if (dot(mean[k], centre[c]) > dot(mean[best], centre[c])) best = k;
+      owner[c] = best;
+    }
+    std::vector<Vec3> sum(K, Vec3{0, 0, 0});
+    std::vector<double> mass(K, 0);
+    for (std::size_t c = 0; c < cells; ++c) {
+      Vec3& s = sum[owner[c]];
+      s = {s.x + counts[c] * centre[c].x, s.y + counts[c] * centre[c].y, s.z + counts[c] * centre[c].z};
+      mass[owner[c]] += counts[c];
+    }
+    double total = 0;
+    for (double m : mass) total += m;
+    for (int k = 0; k < K; ++k) {
+      double len = length(sum[k]);
+      if (mass[k] <= 0 || len <= 0) {  // an empty cluster: a faint uniform lobe
+        lobes[k] = {1e-3, 1e-3, mean[k]};
+        continue;
+      }
+      mean[k] = {sum[k].x / len, sum[k].y / len, sum[k].z / len};
+      lobes[k] = {mass[k] / total, kappa_from_resultant(len / mass[k]), mean[k]};
+    }
+  }
+  double total = 0;
+  for (const VmfLobe& l : lobes) total += l.weight;
+  for (VmfLobe& l : lobes) l.weight /= total;
+  return lobes;
+}
+
+QuadratureLevels::QuadratureLevels(const DirectionGrid& grid)
+    : cell_width_(std::sqrt(4 * kPi / double(grid.cell_count()))) {
+  for (int level = 0; level <= kMaxLevel; ++level) levels_.push_back(grid.quadrature(level));
+}
+
+const CellQuadrature& QuadratureLevels::for_kappa(double kappa) const {
+  int level = 1;
+  while (level < kMaxLevel && (cell_width_ / (1 << level)) * std::sqrt(kappa) > 0.5) ++level;
+  return levels_[level];
+}
+
+namespace {
+
+double max_kappa(const std::vector<VmfLobe>& lobes) {
+  double k = 0;
+  for (const VmfLobe& l : lobes) k = std::max(k, l.kappa);
+  return k;
+}
+
+VmfFitResult solve(const std::vector<double>& counts, const CellQuadrature& q,
+                   const std::vector<VmfLobe>& start, const VmfFitOptions& options) {
+  const int K = int(start.size());
+  std::vector<double> logits(K), log_kappa(K), means(3 * K);
+  for (int k = 0; k < K; ++k) {
+    logits[k] = std::log(std::max(start[k].weight, 1e-12));
+    log_kappa[k] = std::log(std::clamp(start[k].kappa, options.min_kappa * 10, options.max_kappa / 10));
+    means[3 * k] = start[k].mean.x, means[3 * k + 1] = start[k].mean.y, means[3 * k + 2] = start[k].mean.z;
+  }
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  std::vector<double*> blocks = {logits.data(), log_kappa.data()};
+  for (int k = 0; k < K; ++k) blocks.push_back(&means[3 * k]);
+  problem.AddResidualBlock(new PoissonDeviance(q, counts, K), nullptr, blocks);
+  ceres::SphereManifold<3> sphere;
+  for (int k = 0; k < K; ++k) problem.SetManifold(&means[3 * k], &sphere);
+  for (int k = 0; k < K; ++k) {
+    problem.SetParameterLowerBound(log_kappa.data(), k, std::log(options.min_kappa));
+    problem.SetParameterUpperBound(log_kappa.data(), k, std::log(options.max_kappa));
+    problem.SetParameterLowerBound(logits.data(), k, -40);
+    problem.SetParameterUpperBound(logits.data(), k, 40);
+  }
+  if (K == 1) problem.SetParameterBlockConstant(logits.data());
+
+  ceres::Solver::Options solver;
+  solver.linear_solver_type = ceres::DENSE_QR;
+  solver.max_num_iterations = options.max_iterations;
+  solver.function_tolerance = 1e-10;
+  solver.num_threads = 1;
+  solver.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver, &problem, &summary);
+
+  VmfFitResult result;
+  result.iterations = int(summary.iterations.size());
+  result.deviance = 2 * summary.final_cost;
+  double max_logit = *std::max_element(logits.begin(), logits.end()), sum = 0;
+  for (int k = 0; k < K; ++k) sum += std::exp(logits[k] - max_logit);
+  for (int k = 0; k < K; ++k) {
+    result.lobes.push_back({std::exp(logits[k] - max_logit) / sum, std::exp(log_kappa[k]),
+                            normalize({means[3 * k], means[3 * k + 1], means[3 * k + 2]})});
+  }
+  return result;
+}
+
+}  // namespace
+
+VmfFitResult fit_vmf(const std::vector<double>& counts, const QuadratureLevels& levels, int K,
+                     const VmfFitOptions& options) {
+  std::vector<VmfLobe> start = initial_lobes(counts, levels.at(0), K);
+  const CellQuadrature* q = &levels.for_kappa(max_kappa(start));
+  VmfFitResult fit = solve(counts, *q, start, options);
+  const CellQuadrature* finer = &levels.for_kappa(max_kappa(fit.lobes));
+  if (finer->per_cell > q->per_cell) {
+    VmfFitResult refit = solve(counts, *finer, fit.lobes, options);
+    refit.iterations += fit.iterations;
+    return refit;
+  }
+  return fit;
+}
+
+}  // namespace stf::fit

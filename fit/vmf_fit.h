@@ -1,0 +1,49 @@
+// Fits a mixture of von Mises-Fisher lobes to one alpha bin's direction histogram by the
+// binned Poisson likelihood (Ceres, Levenberg-Marquardt on deviance residuals).
+#pragma once
+
+#include <vector>
+
+#include "grid.h"
+#include "stf/vmf.h"
+
+namespace stf::fit {
+
+struct VmfFitOptions {
+  int max_iterations = 100;
+  double min_kappa = 1e-6, max_kappa = 1e8;
+};
+
+struct VmfFitResult {
+  std::vector<VmfLobe> lobes;  // weights sum to 1
+  double deviance = 0;         // Poisson deviance of the fit: 2 sum n log(n / mu) - (n - mu)
+  int iterations = 0;
+};
+
+// Cell quadratures of one grid at levels 0 .. kMaxLevel, built once per table.
+class QuadratureLevels {
+ public:
+  static constexpr int kMaxLevel = 3;
+  explicit QuadratureLevels(const DirectionGrid& grid);
+  const CellQuadrature& at(int level) const { return levels_[level]; }
+  // The coarsest level whose sub-cells are at most half the width 1/sqrt(kappa) of a lobe,
+  // at least 1 and at most kMaxLevel (beyond that, sub-cell widening takes over).
+  const CellQuadrature& for_kappa(double kappa) const;
+
+ private:
+  std::vector<CellQuadrature> levels_;
+  double cell_width_;  // sqrt(4 pi / cells)
+};
+
+// `counts` per cell of the grid; their total must be > 0. The quadrature level follows the
+// narrowest lobe: from the starting point, then once more from the fit if that is narrower.
+VmfFitResult fit_vmf(const std::vector<double>& counts, const QuadratureLevels& levels, int lobes,
+                     const VmfFitOptions& options = {});
+
+// The deterministic starting point: spherical k-means on cell centres weighted by counts
+// (seeded at the fullest cell, then farthest-first), weights from the cluster masses, kappa
+// from each cluster's mean resultant length (Banerjee et al. 2005).
+std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const CellQuadrature& q,
+                                   int lobes);
+
+}  // namespace stf::fit

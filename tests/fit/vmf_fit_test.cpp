@@ -1,0 +1,175 @@
+// vMF fitting: mixtures drawn as direction samples, binned by the grid, fitted back.
+#include "vmf_fit.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "cell_probability.h"
+#include "rng.h"
+#include "seed.h"
+
+namespace stf::fit {
+namespace {
+
+double uniform(std::uint64_t& s) { return double(splitmix64(s) >> 11) * 0x1p-53; }
+
+// Histogram of n directions drawn from the mixture, binned on `grid`.
+std::vector<double> draw_histogram(const std::vector<VmfLobe>& lobes, const DirectionGrid& grid,
+                                   std::int64_t n, std::uint64_t seed) {
+  std::vector<double> counts(grid.cell_count(), 0);
+  std::uint64_t s = seed;
+  for (std::int64_t i = 0; i < n; ++i) {
+    double pick = uniform(s);
+    std::size_t k = 0;
+    while (k + 1 < lobes.size() && pick >= lobes[k].weight) pick -= lobes[k++].weight;
+    counts[grid.cell(sample_vmf(lobes[k], uniform(s), uniform(s)))] += 1;
+  }
+  return counts;
+}
+
+double tv(const std::vector<double>& p, const std::vector<double>& q) {
+  double s = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) s += std::abs(p[i] - q[i]);
+  return 0.5 * s;
+}
+
+std::vector<double> normalised(std::vector<double> v) {
+  double s = 0;
+  for (double x : v) s += x;
+  for (double& x : v) x /= s;
+  return v;
+}
+
+struct Recovery {
+  double tv_fit, tv_histogram;
+  double deviance_fit, deviance_truth;  // on the same quadrature
+  VmfFitResult fit;
+};
+
+Recovery recover(const std::vector<VmfLobe>& truth, const char* spec, std::int64_t n, std::uint64_t seed) {
+  auto grid = make_grid(spec);
+  QuadratureLevels levels(*grid);
+  std::vector<double> counts = draw_histogram(truth, *grid, n, seed);
+  VmfFitResult fit = fit_vmf(counts, levels, int(truth.size()));
+  // "Exact" cell probabilities: a quadrature a level finer than the fit could use.
+  CellQuadrature fine = grid->quadrature(QuadratureLevels::kMaxLevel + 1);
+  std::vector<double> exact = vmf_cell_probabilities(truth, fine), fitted = vmf_cell_probabilities(fit.lobes, fine);
+  return {tv(fitted, exact), tv(normalised(counts), exact), poisson_deviance(counts, fitted),
+          poisson_deviance(counts, exact), fit};
+}
+
+// The optimiser found the maximum likelihood: the fit explains the data at least as well as
+// the truth it was drawn from (up to the quadrature's own error, well below one unit).
+void expect_maximum_likelihood(const Recovery& r) {
+  EXPECT_LE(r.deviance_fit, r.deviance_truth + 0.5) << "fit " << r.deviance_fit << ", truth " << r.deviance_truth;
+}
+
+double angle(const Vec3& a, const Vec3& b) { return std::acos(std::clamp(dot(a, b), -1.0, 1.0)); }
+
+// One lobe: the mean is known to ~1/sqrt(kappa n) per axis and kappa to ~kappa sqrt(2/n)
+// (large kappa; Fisher information of the vMF), both within 6 sigma.
+TEST(VmfFit, RecoversOneLobe) {
+  const std::uint64_t seed = test::test_seed(41);
+  SCOPED_TRACE(test::seed_trace(seed));
+  const std::int64_t n = 400'000;
+  for (double kappa : {3.0, 30.0, 300.0}) {
+    VmfLobe truth{1, kappa, normalize({0.3, -0.5, 0.8})};
+    Recovery r = recover({truth}, "healpix:16", n, seed);
+    const VmfLobe& got = r.fit.lobes[0];
+    EXPECT_LT(angle(got.mean, truth.mean), 6 / std::sqrt(kappa * n)) << "kappa " << kappa;
+    EXPECT_NEAR(got.kappa, kappa, 6 * kappa * std::sqrt(2.0 / n) + 0.01 * kappa) << "kappa " << kappa;
+    EXPECT_LT(r.tv_fit, 0.25 * r.tv_histogram) << "kappa " << kappa;
+    expect_maximum_likelihood(r);
+  }
+}
+
+// kappa -> 0: the resultant length R ~ kappa / 3 has standard error 1 / sqrt(3 n).
+TEST(VmfFit, NearlyUniformLobe) {
+  const std::uint64_t seed = test::test_seed(42);
+  const std::int64_t n = 400'000;
+  Recovery r = recover({VmfLobe{1, 0.1, {0, 0, 1}}}, "healpix:8", n, seed);
+  EXPECT_NEAR(r.fit.lobes[0].kappa, 0.1, 6 * 3 / std::sqrt(3.0 * n));
+  EXPECT_TRUE(std::isfinite(r.fit.lobes[0].mean.z));
+  expect_maximum_likelihood(r);
+}
+
+// kappa = 1e5 is far narrower than a cell (0.06 rad): only "all in these cells" is knowable;
+// the fit must be finite, put its mass where the samples are, and sit inside the right cell.
+TEST(VmfFit, NearDeltaLobe) {
+  const std::uint64_t seed = test::test_seed(43);
+  VmfLobe truth{1, 1e5, normalize({0.2, 0.1, 0.97})};
+  Recovery r = recover({truth}, "healpix:16", 100'000, seed);
+  const VmfLobe& got = r.fit.lobes[0];
+  EXPECT_TRUE(std::isfinite(got.kappa));
+  EXPECT_GT(got.kappa, 1e3);
+  EXPECT_LT(angle(got.mean, truth.mean), 0.06);
+  EXPECT_LT(r.tv_fit, 0.02);
+}
+
+TEST(VmfFit, RecoversSeparatedMixtures) {
+  const std::uint64_t seed = test::test_seed(44);
+  SCOPED_TRACE(test::seed_trace(seed));
+  const std::vector<std::vector<VmfLobe>> cases = {
+      // near-antipodal
+      {{0.7, 20, normalize({0, 0.05, 1})}, {0.3, 50, normalize({0.05, 0, -1})}},
+      {{0.5, 10, {1, 0, 0}}, {0.3, 40, {0, 1, 0}}, {0.2, 100, {0, 0, -1}}},
+      {{0.4, 5, {0, 0, 1}}, {0.3, 30, {1, 0, 0}}, {0.2, 60, {-1, 0, 0}}, {0.1, 200, {0, -1, 0}}},
+  };
+  const std::int64_t n = 800'000;
+  for (const auto& truth : cases) {
+    Recovery r = recover(truth, "healpix:16", n, seed);
+    // Match each true lobe to the nearest fitted mean.
+    for (const VmfLobe& t : truth) {
+      const VmfLobe* best = &r.fit.lobes[0];
+      for (const VmfLobe& f : r.fit.lobes)
+        if (dot(f.mean, t.mean) > dot(best->mean, t.mean)) best = &f;
+      double nk = t.weight * n;
+      EXPECT_LT(angle(best->mean, t.mean), 6 / std::sqrt(t.kappa * nk)) << truth.size() << " lobes";
+      EXPECT_NEAR(best->kappa, t.kappa, 6 * t.kappa * std::sqrt(2.0 / nk) + 0.02 * t.kappa);
+      EXPECT_NEAR(best->weight, t.weight, 6 * std::sqrt(t.weight * (1 - t.weight) / n));
+    }
+    EXPECT_LT(r.tv_fit, 0.25 * r.tv_histogram) << truth.size() << " lobes";
+    expect_maximum_likelihood(r);
+  }
+}
+
+// Lobes 10 degrees apart, the narrow one only a few cells wide: the likelihood is flat along
+// trade-offs between the lobes, so the check is that the optimiser reached the maximum and the
+// density is closer to the truth than the histogram.
+TEST(VmfFit, NearCoincidentLobesFitTheDensity) {
+  const std::uint64_t seed = test::test_seed(45);
+  std::vector<VmfLobe> truth = {{0.6, 50, {0, 0, 1}}, {0.4, 500, normalize({0.17, 0, 0.98})}};
+  Recovery r = recover(truth, "healpix:16", 400'000, seed);
+  expect_maximum_likelihood(r);
+  EXPECT_LT(r.tv_fit, r.tv_histogram);
+  double weights = 0;
+  for (const VmfLobe& l : r.fit.lobes) weights += l.weight;
+  EXPECT_NEAR(weights, 1.0, 1e-12);
+}
+
+TEST(VmfFit, CellProbabilitiesOfANarrowLobeSumToOne) {
+  auto grid = make_grid("csc:5");
+  for (double kappa : {0.0, 1e-8, 1.0, 1e4, 1e7}) {
+    std::vector<double> p = vmf_cell_probabilities({VmfLobe{1, kappa, normalize({1, 2, 3})}}, grid->quadrature(1));
+    double s = 0;
+    for (double v : p) {
+      ASSERT_TRUE(std::isfinite(v));
+      s += v;
+    }
+    EXPECT_NEAR(s, 1.0, 1e-12) << kappa;
+  }
+}
+
+TEST(VmfFit, StableDensityAndSamplingAtExtremeKappa) {
+  EXPECT_NEAR(vmf_pdf(0.0, 0.3), 1 / (4 * kPi), 1e-15);
+  EXPECT_NEAR(vmf_pdf(1e-10, -1.0), (1 - 1e-10) / (4 * kPi), 1e-17);  // (1 + k) e^{-2k} / 4 pi
+  EXPECT_TRUE(std::isfinite(vmf_pdf(1e7, 1.0)));
+  EXPECT_NEAR(vmf_pdf(1e7, 1.0), 1e7 / (2 * kPi), 1);
+  EXPECT_EQ(vmf_pdf(1e7, -1.0), 0.0);
+  for (double kappa : {0.0, 1e-12, 1.0, 1e7})
+    for (double u : {0.0, 1e-300, 0.5, 1 - 1e-16}) EXPECT_TRUE(std::abs(sample_vmf_cos(kappa, u)) <= 1);
+}
+
+}  // namespace
+}  // namespace stf::fit
