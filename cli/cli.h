@@ -62,5 +62,7 @@ class ProgressBar {
 
 void add_precompute_command(CLI::App& app);
 void add_plot_command(CLI::App& app);
+void add_fit_command(CLI::App& app);
+void add_eval_command(CLI::App& app);
 
 }  // namespace stf::cli

@@ -12,6 +12,8 @@ int main(int argc, char** argv) {
   // Options may come from a TOML file, one [section] per subcommand (data/default_medium.toml).
   app.set_config("--config", "", "Read options from a TOML file, [subcommand] sections");
   stf::cli::add_precompute_command(app);
+  stf::cli::add_fit_command(app);
+  stf::cli::add_eval_command(app);
   stf::cli::add_plot_command(app);
   try {
     app.parse(argc, argv);

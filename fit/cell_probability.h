@@ -17,6 +17,7 @@ namespace stf::fit {
 // (solid angle / 12 per axis for a square): 1 / kappa_eff = 1 / kappa + solid_angle / 12.
 // Each lobe's masses are then renormalised over the sphere, so a near-delta lobe still puts
 // its whole weight into the cells around its mean.
+// This is also the quadrature's second-order correction for broad lobes.
 inline double widened_kappa(double kappa, double sub_cell_solid_angle) {
   return kappa / (1 + kappa * sub_cell_solid_angle / 12);
 }

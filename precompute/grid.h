@@ -87,6 +87,7 @@ class HealpixGrid final : public DirectionGrid {
   Vec3 centre(std::int64_t cell) const override;
   std::vector<double> solid_angles() const override;
   CellQuadrature quadrature(int level) const override;
+  int nside() const { return nside_; }
 
  private:
   int nside_;

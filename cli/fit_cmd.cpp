@@ -1,0 +1,121 @@
+// `stf fit`: a raw table to a compact model; `stf eval`: error against a reference table.
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include "cli.h"
+#include "evaluate.h"
+#include "fit_table.h"
+#include "model_io.h"
+
+namespace stf::cli {
+
+namespace {
+
+struct FitOptions {
+  std::string table, model = "vmf:4", output, report;
+  std::string threads = "0";
+  bool quiet = false;
+};
+
+std::string report_json(const fit::FitReport& r, const StfModel& m, const std::string& spec) {
+  std::ostringstream s;
+  s << "{\n  \"model\": \"" << spec << "\", \"chosen_size\": " << r.chosen_size << ", \"smoothing\": " << r.smoothing
+    << ",\n  \"fit_time_s\": " << r.fit_time_s << ", \"model_bytes\": " << m.packed_bytes()
+    << ", \"escape_probability\": " << m.escape_probability << ",\n  \"candidates\": [";
+  for (std::size_t i = 0; i < r.candidates.size(); ++i)
+    s << (i ? ", " : "") << "{\"size\": " << r.candidates[i] << ", \"heldout_nll\": " << r.heldout_nll[i]
+      << ", \"heldout_nll_error\": " << r.heldout_nll_error[i] << "}";
+  s << "],\n  \"per_alpha\": [\n";
+  for (std::size_t b = 0; b < r.bins.size(); ++b) {
+    const fit::BinDiagnostics& d = r.bins[b];
+    s << "    {\"bin\": " << b << ", \"status\": " << int(m.status[b]) << ", \"escapes\": " << d.escapes
+      << ", \"components\": " << d.components << ", \"deviance\": " << d.deviance << ", \"chi2_dof\": " << d.chi2_dof
+      << "}" << (b + 1 < r.bins.size() ? ",\n" : "\n");
+  }
+  s << "  ]\n}\n";
+  return s.str();
+}
+
+void write_text(const std::string& text, const std::string& path, const std::string& option) {
+  AtomicOutput out(path, option);
+  {
+    std::ofstream f(out.temp_path());
+    f << text;
+    if (!f) fail("cannot write " + path);
+  }
+  out.commit();
+}
+
+void run_fit(const FitOptions& o) {
+  fit::FitSettings settings;
+  try {
+    settings = fit::parse_model_spec(o.model);
+  } catch (const std::invalid_argument& e) {
+    fail(e.what());
+  }
+  settings.threads = int(parse_count(o.threads, "--threads", 0, 4096));
+  Table table = read_table(o.table);
+  AtomicOutput out(o.output, "-o");
+  fit::FitReport report;
+  StfModel model = fit::fit_table(table, settings, &report);
+  fit::write_model(model, report, {o.model, o.table, &table}, out.temp_path());
+  out.commit();
+  if (!o.report.empty()) write_text(report_json(report, model, o.model), o.report, "--report");
+  if (!o.quiet)
+    std::fprintf(stderr, "stf fit: %s size %d in %.3g s, %lld bytes (table %lld bytes) -> %s\n", o.model.c_str(),
+                 report.chosen_size, report.fit_time_s, (long long)model.packed_bytes(),
+                 (long long)(std::int64_t(table.alpha_bins) * table.cells * 4), o.output.c_str());
+}
+
+struct EvalOptions {
+  std::string candidate, reference, json;
+};
+
+void run_eval(const EvalOptions& o) {
+  std::string format = fit::file_format(o.candidate);
+  if (format != "stf-model" && format != "stf-table")
+    fail("'" + o.candidate + "' is neither an stf model nor an stf table");
+  Table reference = read_table(o.reference);
+  fit::Evaluation ev;
+  try {
+    ev = format == "stf-model"
+             ? fit::evaluate(fit::read_model(o.candidate), reference, fit::read_chi2_dof(o.candidate))
+             : fit::evaluate(read_table(o.candidate), reference);
+  } catch (const std::invalid_argument& e) {
+    fail(std::string("--reference: ") + e.what());
+  }
+  std::string json = fit::to_json(ev);
+  if (o.json.empty()) std::fputs(json.c_str(), stdout);
+  else write_text(json, o.json, "--json");
+  std::fprintf(stderr, "stf eval: tv %.4g, kl %.4g%s\n", ev.tv, ev.kl,
+               ev.model_bytes >= 0 ? (", " + std::to_string(ev.model_bytes) + " model bytes").c_str() : "");
+}
+
+}  // namespace
+
+void add_fit_command(CLI::App& app) {
+  auto o = std::make_shared<FitOptions>();
+  CLI::App* cmd = app.add_subcommand("fit", "Fit a raw table with vMF lobes or smoothed spherical harmonics");
+  cmd->add_option("table", o->table, "Raw table (HDF5)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--model", o->model, "vmf:K, vmf:auto, sh:L or sh:auto")->capture_default_str();
+  cmd->add_option("-o,--output", o->output, "Output model (HDF5)")->required();
+  cmd->add_option("--report", o->report, "Per-bin diagnostics and model selection as JSON");
+  cmd->add_option("--threads", o->threads, "Worker threads (0: all cores)")->capture_default_str();
+  cmd->add_flag("--quiet", o->quiet, "No summary line");
+  cmd->callback([o] { run_fit(*o); });
+}
+
+void add_eval_command(CLI::App& app) {
+  auto o = std::make_shared<EvalOptions>();
+  CLI::App* cmd = app.add_subcommand("eval", "Error of a model or a raw table against a reference table");
+  cmd->add_option("candidate", o->candidate, "Model or raw table (HDF5)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--reference", o->reference, "Reference table (HDF5), same alpha bins")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--json", o->json, "Write the JSON here instead of stdout");
+  cmd->callback([o] { run_eval(*o); });
+}
+
+}  // namespace stf::cli

@@ -1,0 +1,138 @@
+#include "evaluate.h"
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <sstream>
+#include <stdexcept>
+
+#include "cell_probability.h"
+#include "grid.h"
+#include "vmf_fit.h"
+
+namespace stf::fit {
+
+namespace {
+
+std::vector<double> bin_distribution(const Table& t, int b, double& total) {
+  std::vector<double> p(t.cells);
+  total = 0;
+  for (std::int64_t c = 0; c < t.cells; ++c) {
+    std::size_t i = std::size_t(b) * t.cells + c;
+    total += (p[c] = t.weight_half[0][i] + t.weight_half[1][i]);
+  }
+  if (total > 0)
+    for (double& v : p) v /= total;
+  return p;
+}
+
+void check_alpha_bins(const std::vector<double>& edges, const Table& reference) {
+  if (edges.size() != reference.alpha_edges.size())
+    throw std::invalid_argument("alpha bins differ from the reference's (" + std::to_string(edges.size() - 1) +
+                                " vs " + std::to_string(reference.alpha_bins) + ")");
+  for (std::size_t i = 0; i < edges.size(); ++i)
+    if (std::abs(edges[i] - reference.alpha_edges[i]) > 1e-12) throw std::invalid_argument("alpha bin edges differ from the reference's");
+}
+
+BinError compare(const std::vector<double>& p, const std::vector<double>& q) {
+  BinError e;
+  for (std::size_t c = 0; c < q.size(); ++c) {
+    e.tv += 0.5 * std::abs(p[c] - q[c]);
+    if (q[c] > 0) e.kl += p[c] > 0 ? q[c] * std::log(q[c] / p[c]) : std::numeric_limits<double>::infinity();
+  }
+  return e;
+}
+
+// Weighted totals over bins by the reference's alpha marginal.
+template <typename CandidateBin>
+Evaluation evaluate_bins(const Table& reference, CandidateBin candidate) {
+  Evaluation ev;
+  std::vector<double> mass(reference.alpha_bins);
+  double total = 0;
+  for (int b = 0; b < reference.alpha_bins; ++b) {
+    std::vector<double> q = bin_distribution(reference, b, mass[b]);
+    total += mass[b];
+    BinError e = mass[b] > 0 ? compare(candidate(b), q) : BinError{};
+    ev.per_alpha.push_back(e);
+  }
+  for (int b = 0; b < reference.alpha_bins; ++b) {
+    BinError& e = ev.per_alpha[b];
+    e.weight = total > 0 ? mass[b] / total : 0;
+    if (e.weight == 0) continue;
+    ev.tv += e.weight * e.tv;
+    ev.kl += e.weight * e.kl;
+  }
+  return ev;
+}
+
+}  // namespace
+
+std::vector<double> model_cell_probabilities(const StfModel& m, int b, const DirectionGrid& grid) {
+  if (m.kind == ModelKind::kVmf) {
+    std::vector<VmfLobe> lobes(m.vmf.begin() + std::ptrdiff_t(b) * m.lobes, m.vmf.begin() + std::ptrdiff_t(b + 1) * m.lobes);
+    double kappa = 0;
+    for (const VmfLobe& l : lobes) kappa = std::max(kappa, l.kappa);
+    // The same quadrature rule the fitter used for lobes this narrow.
+    QuadratureLevels levels(grid);
+    return vmf_cell_probabilities(lobes, levels.for_kappa(kappa));
+  }
+  return density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, w); }, grid.quadrature(2));
+}
+
+Evaluation evaluate(const StfModel& m, const Table& reference, const std::vector<double>& chi2_dof) {
+  check_alpha_bins(m.alpha_edges, reference);
+  std::unique_ptr<DirectionGrid> grid = make_grid(reference.grid);
+  Evaluation ev = evaluate_bins(reference, [&](int b) { return model_cell_probabilities(m, b, *grid); });
+  if (chi2_dof.size() == ev.per_alpha.size()) {
+    ev.chi2_dof = 0;
+    for (std::size_t b = 0; b < chi2_dof.size(); ++b) {
+      ev.per_alpha[b].chi2_dof = chi2_dof[b];
+      ev.chi2_dof += ev.per_alpha[b].weight * chi2_dof[b];
+    }
+  }
+  ev.model_bytes = m.packed_bytes();
+  ev.table_bytes = std::int64_t(reference.alpha_bins) * reference.cells * 4;
+  return ev;
+}
+
+Evaluation evaluate(const Table& candidate, const Table& reference) {
+  check_alpha_bins(candidate.alpha_edges, reference);
+  if (candidate.grid != reference.grid)
+    throw std::invalid_argument("grid " + candidate.grid + " differs from the reference's " + reference.grid);
+  Evaluation ev = evaluate_bins(reference, [&](int b) {
+    double n;
+    return bin_distribution(candidate, b, n);
+  });
+  ev.table_bytes = std::int64_t(candidate.alpha_bins) * candidate.cells * 4;
+  return ev;
+}
+
+namespace {
+// JSON has no infinity: an infinite KL (the candidate misses cells the reference has) is null.
+std::string number(double v) {
+  if (!std::isfinite(v)) return "null";
+  std::ostringstream s;
+  s.precision(10);
+  s << v;
+  return s.str();
+}
+}  // namespace
+
+std::string to_json(const Evaluation& e) {
+  std::ostringstream s;
+  s << "{\n  \"tv_distance\": " << number(e.tv) << ",\n  \"kl_divergence\": " << number(e.kl)
+    << ",\n  \"chi2_dof\": " << (e.chi2_dof >= 0 ? number(e.chi2_dof) : "null")
+    << ",\n  \"model_bytes\": " << (e.model_bytes >= 0 ? std::to_string(e.model_bytes) : "null")
+    << ",\n  \"table_bytes\": " << e.table_bytes << ",\n  \"per_alpha\": [\n";
+  for (std::size_t b = 0; b < e.per_alpha.size(); ++b) {
+    const BinError& x = e.per_alpha[b];
+    s << "    {\"bin\": " << b << ", \"weight\": " << number(x.weight) << ", \"tv_distance\": " << number(x.tv)
+      << ", \"kl_divergence\": " << number(x.kl)
+      << ", \"chi2_dof\": " << (x.chi2_dof >= 0 ? number(x.chi2_dof) : "null") << "}"
+      << (b + 1 < e.per_alpha.size() ? ",\n" : "\n");
+  }
+  s << "  ]\n}\n";
+  return s.str();
+}
+
+}  // namespace stf::fit

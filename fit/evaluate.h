@@ -1,0 +1,38 @@
+// Error of a model or a raw table against a reference table (DESIGN.md "Error metrics").
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "stf/model.h"
+#include "grid.h"
+#include "table.h"
+
+namespace stf::fit {
+
+struct BinError {
+  double tv = 0;          // 0.5 sum |p - q| over the reference's cells
+  double kl = 0;          // sum q log(q / p) over cells with reference mass; inf if p = 0 there
+  double chi2_dof = -1;   // against the fitting table (models only; -1 when not known)
+  double weight = 0;      // the reference's alpha marginal in this bin
+};
+
+struct Evaluation {
+  std::vector<BinError> per_alpha;
+  double tv = 0, kl = 0;  // weighted by the reference's alpha marginal
+  double chi2_dof = -1;   // weighted likewise (models only)
+  std::int64_t model_bytes = -1;  // models: packed size
+  std::int64_t table_bytes = 0;   // the thesis's raw layout of the evaluated grid: bins * cells * 4
+};
+
+// Per-cell probabilities of the model in alpha bin b, integrated over `grid`'s cells.
+std::vector<double> model_cell_probabilities(const StfModel& model, int bin, const DirectionGrid& grid);
+
+// Throws std::invalid_argument when the alpha bins (or, for tables, the grids) differ.
+Evaluation evaluate(const StfModel& model, const Table& reference, const std::vector<double>& chi2_dof = {});
+Evaluation evaluate(const Table& candidate, const Table& reference);
+
+std::string to_json(const Evaluation& e);
+
+}  // namespace stf::fit

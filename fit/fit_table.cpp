@@ -1,0 +1,321 @@
+#include "fit_table.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <thread>
+
+#include "cell_probability.h"
+#include "grid.h"
+#include "sh_fit.h"
+#include "stf/sh.h"
+#include "vmf_fit.h"
+
+namespace stf::fit {
+
+FitSettings parse_model_spec(const std::string& spec) {
+  const std::string allowed = "--model must be vmf:K (1..16), vmf:auto, sh:L (0..32) or sh:auto, got '" + spec + "'";
+  auto colon = spec.find(':');
+  if (colon == std::string::npos) throw std::invalid_argument(allowed);
+  std::string kind = spec.substr(0, colon), size = spec.substr(colon + 1);
+  FitSettings s;
+  if (kind == "vmf") s.kind = ModelKind::kVmf;
+  else if (kind == "sh") s.kind = ModelKind::kSh;
+  else throw std::invalid_argument(allowed);
+  if (size == "auto") {
+    s.automatic = true;
+    return s;
+  }
+  if (size.empty() || size.find_first_not_of("0123456789") != std::string::npos || size.size() > 3)
+    throw std::invalid_argument(allowed);
+  s.size = std::stoi(size);
+  if ((s.kind == ModelKind::kVmf && (s.size < 1 || s.size > 16)) || (s.kind == ModelKind::kSh && s.size > 32))
+    throw std::invalid_argument(allowed);
+  return s;
+}
+
+std::vector<int> auto_candidates(ModelKind kind) {
+  return kind == ModelKind::kVmf ? std::vector<int>{1, 2, 3, 4, 6, 8} : std::vector<int>{2, 4, 6, 8, 12, 16};
+}
+
+namespace {
+
+// Escaped weight per cell of alpha bin b: the full table (half < 0) or one half-table.
+std::vector<double> bin_counts(const Table& t, int half, int b) {
+  std::vector<double> counts(t.cells);
+  for (std::int64_t c = 0; c < t.cells; ++c) {
+    std::size_t i = std::size_t(b) * t.cells + c;
+    counts[c] = half < 0 ? t.weight_half[0][i] + t.weight_half[1][i] : t.weight_half[half][i];
+  }
+  return counts;
+}
+
+double sum(const std::vector<double>& v) {
+  double s = 0;
+  for (double x : v) s += x;
+  return s;
+}
+
+// Runs f(bin) for every bin over `threads` threads. Bins are independent, so the result does
+// not depend on the thread count.
+template <typename F>
+void for_each_bin(int bins, int threads, F f) {
+  if (threads <= 0) threads = int(std::max(1u, std::thread::hardware_concurrency()));
+  std::atomic<int> next{0};
+  std::vector<std::thread> pool;
+  for (int t = 0; t < std::min(threads, bins); ++t)
+    pool.emplace_back([&] {
+      for (int b; (b = next.fetch_add(1)) < bins;) f(b);
+    });
+  for (auto& th : pool) th.join();
+}
+
+// Bins whose status is kBorrowed take the parameters of the nearest fitted bin (the lower
+// one on a tie); with no fitted bin at all they become kEmpty with `uniform`.
+template <typename P>
+void fill_borrowed(std::vector<BinStatus>& status, std::vector<P>& params, const P& uniform) {
+  const int bins = int(status.size());
+  for (int b = 0; b < bins; ++b) {
+    if (status[b] != BinStatus::kBorrowed) continue;
+    int source = -1;
+    for (int d = 1; d < bins && source < 0; ++d) {
+      if (b - d >= 0 && status[b - d] == BinStatus::kFitted) source = b - d;
+      else if (b + d < bins && status[b + d] == BinStatus::kFitted) source = b + d;
+    }
+    if (source < 0) {
+      status[b] = BinStatus::kEmpty;
+      params[b] = uniform;
+    } else {
+      params[b] = params[source];
+    }
+  }
+}
+
+// Everything one pass of fitting (on the full table or one half) produces.
+struct BinFits {
+  std::vector<BinStatus> status;
+  std::vector<std::vector<VmfLobe>> lobes;  // vmf
+  std::vector<std::vector<double>> sh;      // sh: raw projections, not yet smoothed
+};
+
+BinFits fit_bins(const Table& t, int half, ModelKind kind, int size, const QuadratureLevels& levels,
+                 const ShProjector* projector, const FitSettings& s) {
+  BinFits fits;
+  fits.status.assign(t.alpha_bins, BinStatus::kBorrowed);
+  fits.lobes.resize(t.alpha_bins);
+  fits.sh.resize(t.alpha_bins);
+  for_each_bin(t.alpha_bins, s.threads, [&](int b) {
+    std::vector<double> counts = bin_counts(t, half, b);
+    double n = sum(counts);
+    if (n < s.min_escapes) return;
+    fits.status[b] = BinStatus::kFitted;
+    if (kind == ModelKind::kSh) {
+      fits.sh[b] = projector->project(counts);
+      return;
+    }
+    // No more lobes than the bin's escapes can support (about 50 per lobe).
+    int lobes = std::clamp(int(n / 50), 1, size);
+    fits.lobes[b] = fit_vmf(counts, levels, lobes).lobes;
+    fits.lobes[b].resize(size, VmfLobe{0, 0, {0, 0, 1}});
+  });
+  std::vector<VmfLobe> uniform(size, VmfLobe{0, 0, {0, 0, 1}});
+  uniform[0].weight = 1;  // kappa 0: the uniform density
+  if (kind == ModelKind::kVmf) fill_borrowed(fits.status, fits.lobes, uniform);
+  std::vector<double> uniform_sh(sh_count(size), 0.0);
+  uniform_sh[0] = 1 / std::sqrt(4 * kPi);
+  if (kind == ModelKind::kSh) fill_borrowed(fits.status, fits.sh, uniform_sh);
+  return fits;
+}
+
+// Cell probabilities of bin b under fitted parameters (vMF, or clamped smoothed SH).
+std::vector<double> bin_probabilities(const BinFits& fits, int b, ModelKind kind, int size, double t,
+                                      const QuadratureLevels& levels, const std::vector<double>& sh_basis) {
+  if (kind == ModelKind::kVmf) {
+    double kappa = 0;
+    for (const VmfLobe& l : fits.lobes[b]) kappa = std::max(kappa, l.kappa);
+    return vmf_cell_probabilities(fits.lobes[b], levels.for_kappa(kappa));
+  }
+  std::vector<double> c = fits.sh[b];
+  smooth_sh(c, size, t);
+  return clamped_sh_cell_probabilities(c, sh_basis, levels.at(1));
+}
+
+// Held-out negative log-likelihood of half `half` under probabilities per bin, with p mixed
+// 1e-6 with the uniform density so that a cell the model calls empty costs a finite amount.
+struct HeldOut {
+  double nll = 0;
+  std::vector<std::vector<double>> log_p;  // per bin, per cell
+};
+
+HeldOut score(const Table& t, int half, const std::vector<std::vector<double>>& p) {
+  HeldOut h;
+  h.log_p.resize(t.alpha_bins);
+  for (int b = 0; b < t.alpha_bins; ++b) {
+    std::vector<double> counts = bin_counts(t, half, b);
+    h.log_p[b].resize(t.cells);
+    for (std::int64_t c = 0; c < t.cells; ++c) {
+      double q = (1 - 1e-6) * p[b][c] + 1e-6 * t.solid_angle[c] / (4 * kPi);
+      h.log_p[b][c] = std::log(q);
+      h.nll -= counts[c] * h.log_p[b][c];
+    }
+  }
+  return h;
+}
+
+// Standard error of the held-out NLL difference between two models: the paths are independent,
+// so its variance is the sum over bins of the multinomial variance of sum n_c d_c.
+double difference_error(const Table& t, int half, const HeldOut& a, const HeldOut& b) {
+  double var = 0;
+  for (int bin = 0; bin < t.alpha_bins; ++bin) {
+    std::vector<double> counts = bin_counts(t, half, bin);
+    double n = sum(counts), s1 = 0, s2 = 0;
+    for (std::int64_t c = 0; c < t.cells; ++c) {
+      double d = a.log_p[bin][c] - b.log_p[bin][c];
+      s1 += counts[c] * d;
+      s2 += counts[c] * d * d;
+    }
+    if (n > 0) var += s2 - s1 * s1 / n;
+  }
+  return std::sqrt(std::max(var, 0.0));
+}
+
+const std::vector<double> kSmoothing = {0, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1};
+
+// Fits on half 0, scores on half 1. For SH, also picks the smoothing t with the lowest
+// held-out NLL; returns it in `best_t`.
+HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const DirectionGrid& grid,
+                         const QuadratureLevels& levels, double& best_t) {
+  std::unique_ptr<ShProjector> projector;
+  std::vector<double> basis;
+  if (s.kind == ModelKind::kSh) {
+    projector = std::make_unique<ShProjector>(grid, size);
+    basis = sh_basis_at(levels.at(1), size);
+  }
+  BinFits fits = fit_bins(t, 0, s.kind, size, levels, projector.get(), s);
+  HeldOut best;
+  best_t = 0;
+  for (double smoothing : s.kind == ModelKind::kSh ? kSmoothing : std::vector<double>{0}) {
+    std::vector<std::vector<double>> p(t.alpha_bins);
+    for_each_bin(t.alpha_bins, s.threads,
+                 [&](int b) { p[b] = bin_probabilities(fits, b, s.kind, size, smoothing, levels, basis); });
+    HeldOut h = score(t, 1, p);
+    if (best.log_p.empty() || h.nll < best.nll) best = std::move(h), best_t = smoothing;
+  }
+  return best;
+}
+
+// Area-uniform alpha marginal: for a model of nothing escaping.
+std::vector<double> uniform_alpha(const std::vector<double>& edges) {
+  std::vector<double> p(edges.size() - 1);
+  for (std::size_t b = 0; b + 1 < edges.size(); ++b) p[b] = 0.5 * (std::cos(edges[b]) - std::cos(edges[b + 1]));
+  return p;
+}
+
+}  // namespace
+
+StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
+  auto start = std::chrono::steady_clock::now();
+  FitReport local;
+  FitReport& r = report ? *report : local;
+  r = FitReport{};
+  std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
+  QuadratureLevels levels(*grid);
+
+  // Model size: given, or the smallest candidate whose held-out NLL is within two standard
+  // errors of the best (the larger model's gain would be noise).
+  int size = s.size;
+  double smoothing = 0;
+  if (s.automatic || s.kind == ModelKind::kSh) {
+    std::vector<int> sizes = s.automatic ? auto_candidates(s.kind) : std::vector<int>{s.size};
+    std::vector<HeldOut> scores;
+    std::vector<double> ts;
+    for (int candidate : sizes) {
+      double best_t = 0;
+      scores.push_back(heldout_for_size(t, s, candidate, *grid, levels, best_t));
+      ts.push_back(best_t);
+    }
+    std::size_t best = 0;
+    for (std::size_t i = 1; i < scores.size(); ++i)
+      if (scores[i].nll < scores[best].nll) best = i;
+    std::size_t chosen = best;
+    for (std::size_t i = 0; i < scores.size(); ++i) {
+      double error = difference_error(t, 1, scores[i], scores[best]);
+      r.candidates.push_back(sizes[i]);
+      r.heldout_nll.push_back(scores[i].nll);
+      r.heldout_nll_error.push_back(error);
+      if (i < chosen && scores[i].nll - scores[best].nll <= 2 * error) chosen = i;
+    }
+    size = sizes[chosen];
+    smoothing = ts[chosen];
+  }
+
+  std::unique_ptr<ShProjector> projector;
+  if (s.kind == ModelKind::kSh) projector = std::make_unique<ShProjector>(*grid, size);
+  BinFits fits = fit_bins(t, -1, s.kind, size, levels, projector.get(), s);
+
+  StfModel m;
+  m.kind = s.kind;
+  m.sigma_s = t.medium.sigma_s, m.sigma_a = t.medium.sigma_a, m.g = t.medium.g;
+  m.radius = t.medium.radius, m.tau = t.medium.tau(), m.albedo = t.medium.albedo();
+  double paths = double(t.paths);
+  m.escape_probability = t.escaped_weight / paths;
+  m.absorbed_fraction = t.absorbed_weight / paths;
+  m.truncated_fraction = t.truncated_weight / paths;
+  m.alpha_edges = t.alpha_edges;
+  m.status = fits.status;
+  std::vector<double> escapes(t.alpha_bins);
+  for (int b = 0; b < t.alpha_bins; ++b) escapes[b] = sum(bin_counts(t, -1, b));
+  double escaped = sum(escapes);
+  m.alpha_probability = escaped > 0 ? escapes : uniform_alpha(t.alpha_edges);
+  for (double& p : m.alpha_probability) p /= escaped > 0 ? escaped : 1;
+  if (s.kind == ModelKind::kVmf) {
+    m.lobes = size;
+    for (const auto& lobes : fits.lobes) m.vmf.insert(m.vmf.end(), lobes.begin(), lobes.end());
+  } else {
+    m.band_limit = size;
+    m.sh_nz = std::max(32, 4 * size);
+    for (int b = 0; b < t.alpha_bins; ++b) {
+      std::vector<double> c = fits.sh[b];
+      if (m.status[b] != BinStatus::kEmpty) smooth_sh(c, size, smoothing);
+      m.sh.insert(m.sh.end(), c.begin(), c.end());
+    }
+    m.rebuild_sh_tables();
+  }
+
+  // Diagnostics against the full table, with the model as a sampler will use it.
+  r.bins.resize(t.alpha_bins);
+  const int params_per_bin = s.kind == ModelKind::kVmf ? 5 * size - 1 : sh_count(size) - 1;
+  for_each_bin(t.alpha_bins, s.threads, [&](int b) {
+    std::vector<double> counts = bin_counts(t, -1, b);
+    BinDiagnostics& d = r.bins[b];
+    d.escapes = sum(counts);
+    d.components = size;
+    if (s.kind == ModelKind::kVmf) {
+      d.components = 0;
+      for (int k = 0; k < size; ++k) d.components += m.vmf[std::size_t(b) * size + k].weight > 0;
+    }
+    if (d.escapes <= 0) return;
+    std::vector<double> p = s.kind == ModelKind::kVmf
+                                ? bin_probabilities(fits, b, s.kind, size, 0, levels, {})
+                                : density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, w); },
+                                                             levels.at(2));
+    d.deviance = poisson_deviance(counts, p);
+    double chi2 = 0;
+    int used = 0;
+    for (std::int64_t c = 0; c < t.cells; ++c) {
+      double mu = d.escapes * p[c];
+      if (mu <= 0) continue;
+      chi2 += (counts[c] - mu) * (counts[c] - mu) / mu;
+      ++used;
+    }
+    d.chi2_dof = chi2 / std::max(1, used - params_per_bin);
+  });
+  r.chosen_size = size;
+  r.smoothing = smoothing;
+  r.fit_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return m;
+}
+
+}  // namespace stf::fit

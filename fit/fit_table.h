@@ -1,0 +1,47 @@
+// Fits a whole raw table: every alpha bin's direction histogram, the alpha marginal and the
+// escape fractions, with model size chosen on the held-out half-table when asked.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "stf/model.h"
+#include "table.h"
+
+namespace stf::fit {
+
+struct FitSettings {
+  ModelKind kind = ModelKind::kVmf;
+  int size = 4;            // lobes (vmf) or band limit (sh)
+  bool automatic = false;  // vmf:auto / sh:auto: size chosen by held-out error
+  int threads = 0;         // 0: all cores; results do not depend on it
+  int min_escapes = 10;    // bins with fewer escapes borrow their neighbour's model
+};
+
+// Parses "vmf:K", "vmf:auto", "sh:L", "sh:auto" (1 <= K <= 16, 0 <= L <= 32). Throws
+// std::invalid_argument naming --model and what is allowed.
+FitSettings parse_model_spec(const std::string& spec);
+
+// Candidate sizes tried by vmf:auto and sh:auto.
+std::vector<int> auto_candidates(ModelKind kind);
+
+struct BinDiagnostics {
+  double escapes = 0;   // the bin's escaped weight in the table
+  int components = 0;   // lobes with weight, or the band limit
+  double deviance = 0;  // Poisson deviance against the table
+  double chi2_dof = 0;  // Pearson chi^2 per degree of freedom against the table
+};
+
+struct FitReport {
+  std::vector<BinDiagnostics> bins;
+  std::vector<int> candidates;           // auto: sizes tried
+  std::vector<double> heldout_nll;       // auto: held-out negative log-likelihood per size
+  std::vector<double> heldout_nll_error; // auto: its standard error against the best
+  int chosen_size = 0;
+  double smoothing = 0;  // sh: heat-kernel t chosen on the held-out half
+  double fit_time_s = 0;
+};
+
+StfModel fit_table(const Table& table, const FitSettings& settings, FitReport* report = nullptr);
+
+}  // namespace stf::fit

@@ -1,0 +1,167 @@
+#include "model_io.h"
+
+#include <H5Cpp.h>
+
+#include <stdexcept>
+
+#include "h5io.h"
+#include "stf/sh.h"
+
+namespace stf::fit {
+
+namespace {
+constexpr int kFormatVersion = 1;
+}
+
+using namespace h5;
+
+void write_model(const StfModel& m, const FitReport& r, const Provenance& p, const std::string& path) {
+  try {
+    H5::Exception::dontPrint();
+    H5::H5File file(path, H5F_ACC_TRUNC);
+    put_attr(file, "format", std::string("stf-model"));
+    put_attr(file, "format_version", kFormatVersion);
+    put_attr(file, "model", std::string(m.kind == ModelKind::kVmf ? "vmf" : "sh"));
+    put_attr(file, "model_spec", p.model_spec);
+    put_attr(file, "sigma_s", m.sigma_s);
+    put_attr(file, "sigma_a", m.sigma_a);
+    put_attr(file, "g", m.g);
+    put_attr(file, "radius", m.radius);
+    put_attr(file, "tau", m.tau);
+    put_attr(file, "albedo", m.albedo);
+    put_attr(file, "escape_probability", m.escape_probability);
+    put_attr(file, "absorbed_fraction", m.absorbed_fraction);
+    put_attr(file, "truncated_fraction", m.truncated_fraction);
+    put_attr(file, "fit_time_s", r.fit_time_s);
+    put_attr(file, "model_bytes", m.packed_bytes());
+    put_attr(file, "generator", std::string("stf " STF_VERSION));
+    put_attr(file, "source_table", p.source_table);
+    if (p.table) {
+      put_attr(file, "source_paths", p.table->paths);
+      put_attr(file, "source_seed", p.table->seed);
+      put_attr(file, "source_grid", p.table->grid);
+      put_attr(file, "source_generator", p.table->generator);
+      put_attr(file, "source_table_bytes", std::int64_t(p.table->alpha_bins) * p.table->cells * 4);
+    }
+
+    const hsize_t bins = hsize_t(m.bins());
+    H5::Group alpha = file.createGroup("/alpha");
+    put_dataset(alpha, "edges", {bins + 1}, m.alpha_edges.data());
+    put_dataset(alpha, "probability", {bins}, m.alpha_probability.data());
+    std::vector<std::int32_t> status(bins);
+    for (std::size_t b = 0; b < bins; ++b) status[b] = std::int32_t(m.status[b]);
+    put_dataset(alpha, "status", {bins}, status.data());
+
+    if (m.kind == ModelKind::kVmf) {
+      H5::Group g = file.createGroup("/vmf");
+      put_attr(g, "lobes", m.lobes);
+      const hsize_t k = hsize_t(m.lobes);
+      std::vector<double> weight, kappa, mean;
+      for (const VmfLobe& l : m.vmf) {
+        weight.push_back(l.weight);
+        kappa.push_back(l.kappa);
+        mean.insert(mean.end(), {l.mean.x, l.mean.y, l.mean.z});
+      }
+      put_dataset(g, "weight", {bins, k}, weight.data());
+      put_dataset(g, "kappa", {bins, k}, kappa.data());
+      put_dataset(g, "mean", {bins, k, 3}, mean.data());
+    } else {
+      H5::Group g = file.createGroup("/sh");
+      put_attr(g, "band_limit", m.band_limit);
+      put_attr(g, "table_nz", m.sh_nz);
+      put_attr(g, "smoothing", r.smoothing);
+      put_dataset(g, "coefficients", {bins, hsize_t(sh_count(m.band_limit))}, m.sh.data());
+    }
+
+    H5::Group d = file.createGroup("/diagnostics");
+    std::vector<double> escapes, deviance, chi2;
+    std::vector<std::int32_t> components;
+    for (const BinDiagnostics& b : r.bins) {
+      escapes.push_back(b.escapes);
+      deviance.push_back(b.deviance);
+      chi2.push_back(b.chi2_dof);
+      components.push_back(b.components);
+    }
+    put_dataset(d, "escapes", {bins}, escapes.data());
+    put_dataset(d, "deviance", {bins}, deviance.data());
+    put_dataset(d, "chi2_dof", {bins}, chi2.data());
+    put_dataset(d, "components", {bins}, components.data());
+    if (!r.candidates.empty()) {
+      H5::Group sel = file.createGroup("/selection");
+      put_attr(sel, "chosen", r.chosen_size);
+      std::vector<std::int32_t> cand(r.candidates.begin(), r.candidates.end());
+      const hsize_t n = cand.size();
+      put_dataset(sel, "candidates", {n}, cand.data());
+      put_dataset(sel, "heldout_nll", {n}, r.heldout_nll.data());
+      put_dataset(sel, "heldout_nll_error", {n}, r.heldout_nll_error.data());
+    }
+  } catch (const H5::Exception& e) {
+    throw std::runtime_error("cannot write " + path + ": " + e.getDetailMsg());
+  }
+}
+
+StfModel read_model(const std::string& path) {
+  try {
+    H5::Exception::dontPrint();
+    H5::H5File file(path, H5F_ACC_RDONLY);
+    if (get_string(file, "format") != "stf-model")
+      throw std::runtime_error("not an stf model (format attribute is not 'stf-model')");
+    if (int v = get_int(file, "format_version"); v != kFormatVersion)
+      throw std::runtime_error("unsupported model format_version " + std::to_string(v));
+    StfModel m;
+    std::string kind = get_string(file, "model");
+    if (kind != "vmf" && kind != "sh") throw std::runtime_error("unknown model kind '" + kind + "'");
+    m.kind = kind == "vmf" ? ModelKind::kVmf : ModelKind::kSh;
+    m.sigma_s = get_double(file, "sigma_s");
+    m.sigma_a = get_double(file, "sigma_a");
+    m.g = get_double(file, "g");
+    m.radius = get_double(file, "radius");
+    m.tau = get_double(file, "tau");
+    m.albedo = get_double(file, "albedo");
+    m.escape_probability = get_double(file, "escape_probability");
+    m.absorbed_fraction = get_double(file, "absorbed_fraction");
+    m.truncated_fraction = get_double(file, "truncated_fraction");
+    m.alpha_probability = get_dataset(file, "/alpha/probability", {});
+    const hsize_t bins = m.alpha_probability.size();
+    m.alpha_edges = get_dataset(file, "/alpha/edges", {bins + 1});
+    for (std::int32_t s : get_int_dataset(file, "/alpha/status", {bins})) m.status.push_back(BinStatus(s));
+    if (m.kind == ModelKind::kVmf) {
+      m.lobes = get_int(file.openGroup("/vmf"), "lobes");
+      const hsize_t k = hsize_t(m.lobes);
+      std::vector<double> w = get_dataset(file, "/vmf/weight", {bins, k});
+      std::vector<double> kappa = get_dataset(file, "/vmf/kappa", {bins, k});
+      std::vector<double> mean = get_dataset(file, "/vmf/mean", {bins, k, 3});
+      for (std::size_t i = 0; i < w.size(); ++i)
+        m.vmf.push_back({w[i], kappa[i], {mean[3 * i], mean[3 * i + 1], mean[3 * i + 2]}});
+    } else {
+      H5::Group g = file.openGroup("/sh");
+      m.band_limit = get_int(g, "band_limit");
+      m.sh_nz = get_int(g, "table_nz");
+      if (m.band_limit < 0 || m.band_limit > 64 || m.sh_nz < 1 || m.sh_nz > 4096)
+        throw std::runtime_error("SH band limit or table size out of range");
+      m.sh = get_dataset(file, "/sh/coefficients", {bins, hsize_t(sh_count(m.band_limit))});
+      m.rebuild_sh_tables();
+    }
+    return m;
+  } catch (const H5::Exception& e) {
+    throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());
+  }
+}
+
+std::vector<double> read_chi2_dof(const std::string& path) {
+  H5::Exception::dontPrint();
+  H5::H5File file(path, H5F_ACC_RDONLY);
+  return get_dataset(file, "/diagnostics/chi2_dof", {});
+}
+
+std::string file_format(const std::string& path) {
+  try {
+    H5::Exception::dontPrint();
+    H5::H5File file(path, H5F_ACC_RDONLY);
+    return has_attr(file, "format") ? get_string(file, "format") : "";
+  } catch (const H5::Exception&) {
+    return "";
+  }
+}
+
+}  // namespace stf::fit

@@ -1,0 +1,42 @@
+// Spherical-harmonic smoothing of one alpha bin's direction histogram.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "grid.h"
+
+namespace stf::fit {
+
+// Projects cell histograms onto real SH up to band limit L: HEALPix grids through
+// healpix_cxx's map2alm_iter (equal-area cells, iterative quadrature); other grids by least
+// squares against the basis averaged over each cell (exact cell solid angles), with the
+// normal matrix factorised once per grid.
+class ShProjector {
+ public:
+  ShProjector(const DirectionGrid& grid, int band_limit);
+  ~ShProjector();
+  int band_limit() const { return band_limit_; }
+  // Coefficients of the density per steradian f_c = counts_c / (total * solid_angle_c).
+  std::vector<double> project(const std::vector<double>& counts) const;
+
+ private:
+  int band_limit_;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Lanczos sigma factors against ringing (sinc(l / (L + 1))) times heat-kernel smoothing
+// exp(-t l (l + 1)), applied in place. The l = 0 term, the total mass, is untouched.
+void smooth_sh(std::vector<double>& coefficients, int band_limit, double t);
+
+// Cell probabilities of max(SH density, 0), renormalised, given the basis evaluated at the
+// quadrature points ([points * count], row-major).
+std::vector<double> clamped_sh_cell_probabilities(const std::vector<double>& coefficients,
+                                                  const std::vector<double>& basis_at_points,
+                                                  const CellQuadrature& q);
+
+// Real SH basis at every quadrature point.
+std::vector<double> sh_basis_at(const CellQuadrature& q, int band_limit);
+
+}  // namespace stf::fit
