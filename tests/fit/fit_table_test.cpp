@@ -1,0 +1,237 @@
+// Whole tables: stiff media, determinism, storage, evaluation.
+#include "fit_table.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "evaluate.h"
+#include "grid.h"
+#include "model_io.h"
+#include "precompute.h"
+#include "rng.h"
+
+namespace stf::fit {
+namespace {
+
+Table make_table(Medium m, std::int64_t paths, const char* grid = "healpix:4", int bins = 18,
+                 std::int64_t seed = 1, std::int64_t max_scatter = -1) {
+  PrecomputeSettings s;
+  s.paths = paths;
+  s.grid = grid;
+  s.alpha_bins = bins;
+  s.seed = seed;
+  s.max_scatter = max_scatter;
+  return *precompute(m, s);
+}
+
+// Finite, normalised, and its direction density integrates to one in every bin.
+void expect_sane(const StfModel& m, const char* what) {
+  double alpha = 0;
+  for (double p : m.alpha_probability) {
+    ASSERT_TRUE(std::isfinite(p)) << what;
+    alpha += p;
+  }
+  EXPECT_NEAR(alpha, 1, 1e-12) << what;
+  EXPECT_TRUE(std::isfinite(m.escape_probability)) << what;
+  auto grid = make_grid("healpix:8");
+  for (int b = 0; b < m.bins(); ++b) {
+    std::vector<double> p = model_cell_probabilities(m, b, *grid);
+    double s = 0;
+    for (double v : p) {
+      ASSERT_TRUE(std::isfinite(v)) << what << " bin " << b;
+      s += v;
+    }
+    EXPECT_NEAR(s, 1, 1e-9) << what << " bin " << b;
+    for (const VmfLobe& l : m.vmf) {
+      ASSERT_TRUE(std::isfinite(l.kappa) && std::isfinite(l.weight) && std::isfinite(l.mean.z)) << what;
+    }
+    // The SH-derived pdf integrates to 1 over its own equal-area cells (one point per cell:
+    // it is constant there).
+    if (m.kind == ModelKind::kSh) {
+      const int nz = m.sh_nz;
+      double integral = 0;
+      for (int r = 0; r < nz; ++r)
+        for (int c = 0; c < 2 * nz; ++c) {
+          double z = -1 + (2 * r + 1.0) / nz, phi = kPi * (c + 0.5) / nz, rho = std::sqrt(1 - z * z);
+          integral += 4 * kPi / (2.0 * nz * nz) * m.direction_pdf(b, {rho * std::cos(phi), rho * std::sin(phi), z});
+        }
+      EXPECT_NEAR(integral, 1, 1e-6) << what << " bin " << b;
+    }
+  }
+}
+
+TEST(FitTable, StiffMediaGiveFiniteNormalisedModels) {
+  struct Case {
+    const char* what;
+    Medium medium;
+    std::int64_t paths, max_scatter;
+  };
+  const Case cases[] = {
+      {"tau 1e-6 (delta)", {1e-6, 0, 0.5, 1}, 20000, -1},
+      {"g = 0.999", {5, 0, 0.999, 1}, 20000, -1},
+      {"g = -0.999", {5, 0, -0.999, 1}, 20000, -1},
+      {"albedo 1e-6", {1e-6, 1, 0.3, 1}, 20000, -1},
+      {"few paths: bins with 0 or 1 escape", {2, 0, 0.5, 1}, 40, -1},
+      {"max-scatter 0", {3, 0, 0, 1}, 20000, 0},
+      {"everything absorbed", {0, 50, 0, 1}, 2000, -1},
+  };
+  for (const Case& c : cases) {
+    Table t = make_table(c.medium, c.paths, "healpix:4", 18, 1, c.max_scatter);
+    for (const char* spec : {"vmf:2", "sh:6"}) {
+      FitSettings s = parse_model_spec(spec);
+      s.threads = 2;
+      StfModel m = fit_table(t, s);
+      expect_sane(m, (std::string(c.what) + " " + spec).c_str());
+    }
+  }
+}
+
+TEST(FitTable, EmptyBinsBorrowFromTheirNeighbours) {
+  Table t = make_table({2, 0, 0.5, 1}, 40);
+  StfModel m = fit_table(t, parse_model_spec("vmf:1"));
+  int borrowed = 0;
+  for (int b = 0; b < m.bins(); ++b) {
+    if (m.status[b] != BinStatus::kBorrowed) continue;
+    ++borrowed;
+    bool same_as_a_fitted_bin = false;
+    for (int f = 0; f < m.bins(); ++f)
+      if (m.status[f] == BinStatus::kFitted && m.vmf[f].kappa == m.vmf[b].kappa) same_as_a_fitted_bin = true;
+    EXPECT_TRUE(same_as_a_fitted_bin) << b;
+  }
+  EXPECT_GT(borrowed, 0);
+}
+
+TEST(FitTable, DeterministicForAnyThreadCount) {
+  Table t = make_table({4, 0.5, 0.6, 1}, 50000);
+  for (const char* spec : {"vmf:3", "sh:8"}) {
+    FitSettings s = parse_model_spec(spec);
+    s.threads = 1;
+    StfModel one = fit_table(t, s);
+    s.threads = 3;
+    StfModel three = fit_table(t, s);
+    ASSERT_EQ(one.vmf.size(), three.vmf.size());
+    for (std::size_t i = 0; i < one.vmf.size(); ++i) {
+      EXPECT_EQ(one.vmf[i].weight, three.vmf[i].weight);
+      EXPECT_EQ(one.vmf[i].kappa, three.vmf[i].kappa);
+      EXPECT_EQ(one.vmf[i].mean.x, three.vmf[i].mean.x);
+    }
+    EXPECT_EQ(one.sh, three.sh);
+  }
+}
+
+TEST(FitTable, StoreLoadRoundTripIsExact) {
+  Table t = make_table({4, 0.5, 0.6, 1}, 30000);
+  std::string path = ::testing::TempDir() + "/model_" + std::to_string(::getpid()) + ".h5";
+  for (const char* spec : {"vmf:2", "sh:6"}) {
+    FitReport report;
+    StfModel m = fit_table(t, parse_model_spec(spec), &report);
+    write_model(m, report, {spec, "table.h5", &t}, path);
+    StfModel r = read_model(path);
+    EXPECT_EQ(r.alpha_probability, m.alpha_probability);
+    EXPECT_EQ(r.alpha_edges, m.alpha_edges);
+    EXPECT_EQ(r.escape_probability, m.escape_probability);
+    EXPECT_EQ(r.sh, m.sh);
+    EXPECT_EQ(r.sh_table, m.sh_table);
+    ASSERT_EQ(r.vmf.size(), m.vmf.size());
+    for (std::size_t i = 0; i < m.vmf.size(); ++i) {
+      EXPECT_EQ(r.vmf[i].kappa, m.vmf[i].kappa);
+      EXPECT_EQ(r.vmf[i].mean.y, m.vmf[i].mean.y);
+    }
+    EXPECT_EQ(read_chi2_dof(path).size(), std::size_t(m.bins()));
+  }
+  std::remove(path.c_str());
+}
+
+TEST(Evaluate, TableAgainstItselfIsZero) {
+  Table t = make_table({4, 0, 0.5, 1}, 20000);
+  Evaluation e = evaluate(t, t);
+  EXPECT_EQ(e.tv, 0);
+  EXPECT_EQ(e.kl, 0);
+}
+
+// Two independent tables differ by sampling noise: TV ~ 1 / sqrt(paths) while most cells are
+// populated. Quadrupling the paths should halve it (ratio 2 within 15%).
+TEST(Evaluate, IndependentTablesConvergeLikeOneOverSqrtPaths) {
+  const Medium m{3, 0, 0.3, 1};
+  double tv_small = evaluate(make_table(m, 200000, "healpix:2", 9, 1), make_table(m, 200000, "healpix:2", 9, 2)).tv;
+  double tv_large = evaluate(make_table(m, 800000, "healpix:2", 9, 3), make_table(m, 800000, "healpix:2", 9, 4)).tv;
+  EXPECT_NEAR(tv_small / tv_large, 2.0, 0.3);
+}
+
+// Where the table is noisy (here ~1700 escapes per bin over 3072 cells), the fit is far
+// closer to the reference than the table it came from, at a fraction of its bytes.
+TEST(Evaluate, FittedModelBeatsItsRawTable) {
+  const Medium m{5, 0, 0.5, 1};
+  Table train = make_table(m, 30000, "healpix:16", 18, 1), reference = make_table(m, 3000000, "healpix:16", 18, 2);
+  double raw = evaluate(train, reference).tv;
+  for (const char* spec : {"vmf:3", "sh:8"}) {
+    StfModel model = fit_table(train, parse_model_spec(spec));
+    Evaluation e = evaluate(model, reference);
+    EXPECT_LT(e.tv, raw) << spec;
+    EXPECT_GT(e.model_bytes, 0);
+    EXPECT_LT(e.model_bytes, e.table_bytes / 10) << spec;
+  }
+}
+
+TEST(Evaluate, RejectsMismatchedBins) {
+  Table a = make_table({1, 0, 0, 1}, 1000, "healpix:2", 9), b = make_table({1, 0, 0, 1}, 1000, "healpix:2", 10);
+  EXPECT_THROW(evaluate(a, b), std::invalid_argument);
+  Table c = make_table({1, 0, 0, 1}, 1000, "csc:2", 9);
+  EXPECT_THROW(evaluate(a, c), std::invalid_argument);
+}
+
+// A table whose bins hold draws from known mixtures (each half drawn independently): auto
+// selection must not pick fewer lobes than the truth has, nor many more.
+Table synthetic_table(const std::vector<VmfLobe>& truth, std::int64_t per_half, std::uint64_t seed) {
+  Table t;
+  t.medium = {1, 0, 0, 1};
+  t.paths = 2 * per_half;
+  t.escaped_weight = double(t.paths);
+  t.grid = "healpix:8";
+  t.alpha_bins = 3;
+  auto grid = make_grid(t.grid);
+  t.cells = grid->cell_count();
+  t.solid_angle = grid->solid_angles();
+  for (int b = 0; b <= t.alpha_bins; ++b) t.alpha_edges.push_back(kPi * b / t.alpha_bins);
+  std::uint64_t s = seed;
+  auto u = [&] { return double(splitmix64(s) >> 11) * 0x1p-53; };
+  for (auto& half : t.weight_half) {
+    half.assign(std::size_t(t.alpha_bins) * t.cells, 0);
+    for (int b = 0; b < t.alpha_bins; ++b)
+      for (std::int64_t i = 0; i < per_half; ++i) {
+        double pick = u();
+        std::size_t k = 0;
+        while (k + 1 < truth.size() && pick >= truth[k].weight) pick -= truth[k++].weight;
+        half[std::size_t(b) * t.cells + grid->cell(sample_vmf(truth[k], u(), u()))] += 1;
+      }
+  }
+  return t;
+}
+
+TEST(FitTable, AutoChoosesTheTruthsSizeWithinNoise) {
+  std::vector<VmfLobe> one = {{1, 20, {0, 0, 1}}};
+  std::vector<VmfLobe> three = {{0.5, 20, {0, 0, 1}}, {0.3, 40, {1, 0, 0}}, {0.2, 30, {0, -1, 0}}};
+  FitReport r1, r3;
+  fit_table(synthetic_table(one, 20000, 7), parse_model_spec("vmf:auto"), &r1);
+  fit_table(synthetic_table(three, 20000, 8), parse_model_spec("vmf:auto"), &r3);
+  EXPECT_EQ(r1.candidates.size(), auto_candidates(ModelKind::kVmf).size());
+  EXPECT_EQ(r1.chosen_size, 1);
+  EXPECT_GE(r3.chosen_size, 3);
+  EXPECT_LE(r3.chosen_size, 4);
+  FitReport sh;
+  fit_table(synthetic_table(one, 20000, 9), parse_model_spec("sh:auto"), &sh);
+  EXPECT_GE(sh.chosen_size, 4);  // a kappa = 20 lobe needs more than the dipole
+}
+
+TEST(FitTable, ParsesModelSpecs) {
+  EXPECT_EQ(parse_model_spec("vmf:4").size, 4);
+  EXPECT_TRUE(parse_model_spec("sh:auto").automatic);
+  for (const char* bad : {"", "vmf", "vmf:0", "vmf:17", "sh:33", "sh:-1", "gauss:3", "vmf:4x"})
+    EXPECT_THROW(parse_model_spec(bad), std::invalid_argument) << bad;
+}
+
+}  // namespace
+}  // namespace stf::fit
