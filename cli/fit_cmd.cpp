@@ -18,6 +18,7 @@ namespace {
 struct FitOptions {
   std::string table, model = "vmf:4", output, report;
   std::string threads = "0";
+  int alpha_degree = -1;
   bool quiet = false;
 };
 
@@ -58,6 +59,9 @@ void run_fit(const FitOptions& o) {
     fail(e.what());
   }
   settings.threads = int(parse_count(o.threads, "--threads", 0, 4096));
+  if (o.alpha_degree >= 0 && settings.kind != ModelKind::kSh) fail("--alpha-degree applies to sh models only");
+  if (o.alpha_degree < -1 || o.alpha_degree > 64) fail("--alpha-degree must be in 0..64 (or -1: off)");
+  settings.alpha_degree = o.alpha_degree;
   Table table = read_table(o.table);
   AtomicOutput out(o.output, "-o");
   fit::FitReport report;
@@ -105,6 +109,9 @@ void add_fit_command(CLI::App& app) {
   cmd->add_option("-o,--output", o->output, "Output model (HDF5)")->required();
   cmd->add_option("--report", o->report, "Per-bin diagnostics and model selection as JSON");
   cmd->add_option("--threads", o->threads, "Worker threads (0: all cores)")->capture_default_str();
+  cmd->add_option("--alpha-degree", o->alpha_degree,
+                  "sh: store each coefficient as a Chebyshev series of this degree in cos(alpha)")
+      ->capture_default_str();
   cmd->add_flag("--quiet", o->quiet, "No summary line");
   cmd->callback([o] { run_fit(*o); });
 }

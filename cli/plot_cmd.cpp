@@ -10,6 +10,8 @@
 #include "cli.h"
 #include "grid.h"
 #include "h5io.h"
+#include "evaluate.h"
+#include "model_io.h"
 #include "table.h"
 
 namespace stf::cli {
@@ -20,6 +22,7 @@ struct PlotOptions {
   std::vector<std::string> tables;
   double alpha_deg = 0;
   std::string output;
+  std::string model;
   int width = 720;
 };
 
@@ -37,11 +40,8 @@ std::vector<double> cell_density(const Table& t, int bin) {
 
 // One panel's data: the density raster over (theta, phi) from each pixel's own cell, and the
 // cell centres with their densities (what the thesis interpolated).
-void write_panel(H5::H5File& file, int index, const std::string& path, double alpha, int width) {
-  Table t = read_table(path);
-  int bin = std::min(int(alpha / kPi * t.alpha_bins), t.alpha_bins - 1);
-  std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
-  std::vector<double> density = cell_density(t, bin);
+void write_panel(H5::H5File& file, int index, const Table& t, const DirectionGrid& grid,
+                 const std::vector<double>& density, const std::string& title, int width) {
   const int height = width / 2;
   std::vector<double> raster(std::size_t(width) * height);
   for (int r = 0; r < height; ++r) {
@@ -49,7 +49,7 @@ void write_panel(H5::H5File& file, int index, const std::string& path, double al
     for (int c = 0; c < width; ++c) {
       double phi = -kPi + 2 * kPi * (c + 0.5) / width;
       Vec3 d{std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
-      raster[std::size_t(r) * width + c] = density[grid->cell(d)];
+      raster[std::size_t(r) * width + c] = density[grid.cell(d)];
     }
   }
   std::vector<double> theta(t.cells), phi(t.cells);
@@ -63,14 +63,18 @@ void write_panel(H5::H5File& file, int index, const std::string& path, double al
   h5::put_dataset(g, "cell_theta", {hsize_t(t.cells)}, theta.data());
   h5::put_dataset(g, "cell_phi", {hsize_t(t.cells)}, phi.data());
   h5::put_dataset(g, "cell_density", {hsize_t(t.cells)}, density.data());
-  char title[256];
-  std::snprintf(title, sizeof title,
-                "%s  sigma_s=%g sigma_a=%g g=%g  alpha in [%.1f, %.1f) deg  %.3g paths",
-                t.grid.c_str(), t.medium.sigma_s, t.medium.sigma_a, t.medium.g,
-                t.alpha_edges[bin] * 180 / kPi, t.alpha_edges[bin + 1] * 180 / kPi,
-                double(t.paths));
-  h5::put_attr(g, "title", std::string(title));
+  h5::put_attr(g, "title", title);
 }
+
+std::string describe(const Table& t, int bin, const std::string& what) {
+  char title[256];
+  std::snprintf(title, sizeof title, "%s  %s  sigma_s=%g sigma_a=%g g=%g  alpha in [%.1f, %.1f) deg  %.3g paths",
+                what.c_str(), t.grid.c_str(), t.medium.sigma_s, t.medium.sigma_a, t.medium.g,
+                t.alpha_edges[bin] * 180 / kPi, t.alpha_edges[bin + 1] * 180 / kPi, double(t.paths));
+  return title;
+}
+
+int alpha_bin(const Table& t, double alpha) { return std::min(int(alpha / kPi * t.alpha_bins), t.alpha_bins - 1); }
 
 std::string tools_dir() {
   if (const char* env = std::getenv("STF_TOOLS_DIR")) return env;
@@ -85,8 +89,25 @@ void run_plot(const PlotOptions& o) {
   {
     H5::Exception::dontPrint();
     H5::H5File file(data.temp_path(), H5F_ACC_TRUNC);
-    for (std::size_t i = 0; i < o.tables.size(); ++i)
-      write_panel(file, int(i), o.tables[i], o.alpha_deg * kPi / 180, o.width);
+    const double alpha = o.alpha_deg * kPi / 180;
+    for (std::size_t i = 0; i < o.tables.size(); ++i) {
+      Table t = read_table(o.tables[i]);
+      std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
+      int bin = alpha_bin(t, alpha);
+      write_panel(file, int(i), t, *grid, cell_density(t, bin), describe(t, bin, "table"), o.width);
+    }
+    if (!o.model.empty()) {
+      // The model integrated over the first table's cells, beside it.
+      Table t = read_table(o.tables.front());
+      std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
+      int bin = alpha_bin(t, alpha);
+      StfModel model = fit::read_model(o.model);
+      if (model.bins() != t.alpha_bins) fail("--model has " + std::to_string(model.bins()) + " alpha bins, the table " + std::to_string(t.alpha_bins));
+      std::vector<double> density = fit::model_cell_probabilities(model, bin, *grid);
+      for (std::int64_t c = 0; c < t.cells; ++c) density[c] /= t.solid_angle[c];
+      write_panel(file, int(o.tables.size()), t, *grid, density,
+                  describe(t, bin, "model " + o.model.substr(o.model.find_last_of('/') + 1)), o.width);
+    }
   }
   std::string command = "/usr/bin/python3 '" + tools_dir() + "/plot_directions.py' '" +
                         data.temp_path() + "' '" + png.temp_path() + "'";
@@ -99,11 +120,13 @@ void run_plot(const PlotOptions& o) {
 void add_plot_command(CLI::App& app) {
   auto o = std::make_shared<PlotOptions>();
   CLI::App* cmd = app.add_subcommand(
-      "plot", "Theta-phi plots of exit directions for one alpha (one row per table), PNG");
+      "plot", "Theta-phi plots of exit directions for one alpha (one row per table or model), PNG");
   cmd->add_option("tables", o->tables, "Raw tables (HDF5)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--alpha", o->alpha_deg, "Exit-point angle alpha in degrees")->required();
   cmd->add_option("-o,--output", o->output, "Output image (PNG)")->required();
   cmd->add_option("--width", o->width, "Raster width in pixels")->capture_default_str();
+  cmd->add_option("--model", o->model, "A fitted model of the (first) table: drawn below it, integrated over its cells")
+      ->check(CLI::ExistingFile);
   cmd->callback([o] {
     try {
       run_plot(*o);

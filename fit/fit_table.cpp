@@ -1,5 +1,7 @@
 #include "fit_table.h"
 
+#include <Eigen/Dense>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -215,6 +217,30 @@ std::vector<double> uniform_alpha(const std::vector<double>& edges) {
 
 }  // namespace
 
+void compress_across_alpha(StfModel& m, const std::vector<double>& escapes) {
+  const int bins = m.bins(), count = sh_count(m.band_limit), n = m.alpha_degree + 1;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(bins, n), Y = Eigen::MatrixXd::Zero(bins, count);
+  for (int b = 0; b < bins; ++b) {
+    double x = std::cos(0.5 * (m.alpha_edges[b] + m.alpha_edges[b + 1]));
+    double w = m.status[b] == BinStatus::kFitted ? std::sqrt(escapes[b]) : 0.0;
+    for (int j = 0; j < n; ++j) A(b, j) = w * std::cos(j * std::acos(x));  // T_j(x)
+    for (int i = 0; i < count; ++i) Y(b, i) = w * m.sh[std::size_t(b) * count + i];
+  }
+  Eigen::MatrixXd C = A.colPivHouseholderQr().solve(Y);  // [n, count]
+  m.sh_chebyshev.clear();
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < count; ++i) m.sh_chebyshev.push_back(C(j, i));
+  for (int b = 0; b < bins; ++b) {
+    double x = std::cos(0.5 * (m.alpha_edges[b] + m.alpha_edges[b + 1]));
+    for (int i = 0; i < count; ++i) {
+      double v = 0;
+      for (int j = 0; j < n; ++j) v += C(j, i) * std::cos(j * std::acos(x));
+      m.sh[std::size_t(b) * count + i] = v;
+    }
+  }
+  m.rebuild_sh_tables();
+}
+
 StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   auto start = std::chrono::steady_clock::now();
   FitReport local;
@@ -282,6 +308,10 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
       m.sh.insert(m.sh.end(), c.begin(), c.end());
     }
     m.rebuild_sh_tables();
+    if (s.alpha_degree >= 0 && escaped > 0) {
+      m.alpha_degree = std::min(s.alpha_degree, t.alpha_bins - 1);
+      compress_across_alpha(m, escapes);
+    }
   }
 
   // Diagnostics against the full table, with the model as a sampler will use it.

@@ -16,6 +16,7 @@ struct FitSettings {
   bool automatic = false;  // vmf:auto / sh:auto: size chosen by held-out error
   int threads = 0;         // 0: all cores; results do not depend on it
   int min_escapes = 10;    // bins with fewer escapes borrow their neighbour's model
+  int alpha_degree = -1;   // sh: >= 0 replaces the bins' coefficients by a Chebyshev series in cos(alpha)
 };
 
 // Parses "vmf:K", "vmf:auto", "sh:L", "sh:auto" (1 <= K <= 16, 0 <= L <= 32). Throws
@@ -41,6 +42,11 @@ struct FitReport {
   double smoothing = 0;  // sh: heat-kernel t chosen on the held-out half
   double fit_time_s = 0;
 };
+
+// Fits every SH coefficient across the fitted bins as a Chebyshev series of degree
+// model.alpha_degree in cos(alpha) at the bin centres, least squares weighted by each bin's
+// escapes, and replaces the bins' coefficients by its values.
+void compress_across_alpha(StfModel& model, const std::vector<double>& escapes);
 
 StfModel fit_table(const Table& table, const FitSettings& settings, FitReport* report = nullptr);
 

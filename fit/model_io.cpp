@@ -71,6 +71,10 @@ void write_model(const StfModel& m, const FitReport& r, const Provenance& p, con
       put_attr(g, "table_nz", m.sh_nz);
       put_attr(g, "smoothing", r.smoothing);
       put_dataset(g, "coefficients", {bins, hsize_t(sh_count(m.band_limit))}, m.sh.data());
+      put_attr(g, "alpha_degree", m.alpha_degree);
+      if (m.alpha_degree >= 0)
+        put_dataset(g, "chebyshev", {hsize_t(m.alpha_degree + 1), hsize_t(sh_count(m.band_limit))},
+                    m.sh_chebyshev.data());
     }
 
     H5::Group d = file.createGroup("/diagnostics");
@@ -140,6 +144,9 @@ StfModel read_model(const std::string& path) {
       if (m.band_limit < 0 || m.band_limit > 64 || m.sh_nz < 1 || m.sh_nz > 4096)
         throw std::runtime_error("SH band limit or table size out of range");
       m.sh = get_dataset(file, "/sh/coefficients", {bins, hsize_t(sh_count(m.band_limit))});
+      m.alpha_degree = get_int(g, "alpha_degree");
+      if (m.alpha_degree >= 0)
+        m.sh_chebyshev = get_dataset(file, "/sh/chebyshev", {hsize_t(m.alpha_degree + 1), hsize_t(sh_count(m.band_limit))});
       m.rebuild_sh_tables();
     }
     return m;

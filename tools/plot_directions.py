@@ -46,7 +46,7 @@ def draw(panels_path, out_path):
             ax = axes[row][1]
             im = ax.imshow(raster, extent=extent, aspect="auto", cmap="viridis", vmin=0, vmax=vmax,
                            interpolation="nearest")
-            ax.set_title("cell of each direction (the table)", fontsize=9)
+            ax.set_title("cell of each direction (no interpolation)", fontsize=9)
             fig.colorbar(im, ax=axes[row].tolist(), label="p(w' | alpha)  [1/sr]")
             title = g.attrs["title"]
             title = title if isinstance(title, str) else title.decode()

@@ -63,8 +63,9 @@ std::int64_t StfModel::packed_bytes() const {
   const std::int64_t header = 128;  // magic, version, kind, medium, sizes, checksum
   std::int64_t per_bin = 4 + 4;     // alpha probability and status
   if (kind == ModelKind::kVmf) per_bin += std::int64_t(lobes) * 5 * 4;  // weight, kappa, mean xyz
-  else per_bin += std::int64_t(sh_count(band_limit)) * 4;
-  return header + std::int64_t(bins()) * per_bin + std::int64_t(alpha_edges.size()) * 4;
+  else if (alpha_degree < 0) per_bin += std::int64_t(sh_count(band_limit)) * 4;
+  std::int64_t across = alpha_degree >= 0 ? std::int64_t(alpha_degree + 1) * sh_count(band_limit) * 4 : 0;
+  return header + std::int64_t(bins()) * per_bin + std::int64_t(alpha_edges.size()) * 4 + across;
 }
 
 }  // namespace stf

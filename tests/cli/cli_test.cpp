@@ -157,6 +157,42 @@ TEST_F(Cli, HelpAndVersion) {
   EXPECT_NE(stf("").status, 0);
 }
 
+TEST_F(Cli, FitAndEvalProduceModelAndJson) {
+  const std::string medium = "precompute --sigma-s 2 --sigma-a 0.5 --g 0.3 --alpha-bins 6 --grid healpix:2 --quiet ";
+  ASSERT_EQ(stf(medium + "--paths 20000 -o " + out("t.h5")).status, 0);
+  ASSERT_EQ(stf(medium + "--paths 80000 --seed 2 -o " + out("ref.h5")).status, 0);
+  Result fit = stf("fit " + out("t.h5") + " --model vmf:2 --quiet --report " + out("fit.json") + " -o " + out("m.h5"));
+  ASSERT_EQ(fit.status, 0) << fit.err;
+  Result eval = stf("eval " + out("m.h5") + " --reference " + out("ref.h5") + " --json " + out("e.json"));
+  ASSERT_EQ(eval.status, 0) << eval.err;
+  std::ifstream json(out("e.json"));
+  std::string text((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+  for (const char* key : {"\"tv_distance\"", "\"kl_divergence\"", "\"per_alpha\"", "\"model_bytes\""})
+    EXPECT_NE(text.find(key), std::string::npos) << key;
+  EXPECT_EQ(stf("eval " + out("t.h5") + " --reference " + out("ref.h5") + " --json " + out("raw.json")).status, 0);
+}
+
+TEST_F(Cli, FitAndEvalRejectBadInput) {
+  ASSERT_EQ(stf("precompute " + kGood + " -o " + out("t.h5")).status, 0);
+  ASSERT_EQ(stf("precompute --sigma-s 1 --sigma-a 0 --g 0 --alpha-bins 5 --grid healpix:2 --paths 100 --quiet -o " +
+                out("other.h5")).status, 0);
+  const BadInput cases[] = {
+      {"fit " + out("t.h5") + " --model vmf:0 -o " + out("m.h5"), "--model"},
+      {"fit " + out("t.h5") + " --model gauss:3 -o " + out("m.h5"), "--model"},
+      {"fit " + out("missing.h5") + " -o " + out("m.h5"), "missing.h5"},
+      {"fit " + out("t.h5") + " -o /nonexistent-folder/m.h5", "-o"},
+      {"eval " + out("t.h5") + " --reference " + out("other.h5"), "--reference"},
+  };
+  for (const BadInput& c : cases) {
+    Result r = stf(c.args);
+    EXPECT_NE(r.status, 0) << c.args;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.option), std::string::npos) << c.args << "\n" << r.err;
+  }
+  auto names = files();
+  EXPECT_EQ(std::count(names.begin(), names.end(), std::string("m.h5")), 0);
+}
+
 bool have_matplotlib() {
   return std::system("/usr/bin/python3 -c 'import matplotlib, h5py' >/dev/null 2>&1") == 0;
 }

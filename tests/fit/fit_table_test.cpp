@@ -125,9 +125,11 @@ TEST(FitTable, DeterministicForAnyThreadCount) {
 TEST(FitTable, StoreLoadRoundTripIsExact) {
   Table t = make_table({4, 0.5, 0.6, 1}, 30000);
   std::string path = ::testing::TempDir() + "/model_" + std::to_string(::getpid()) + ".h5";
-  for (const char* spec : {"vmf:2", "sh:6"}) {
+  for (const char* spec : {"vmf:2", "sh:6", "sh:6 across alpha"}) {
     FitReport report;
-    StfModel m = fit_table(t, parse_model_spec(spec), &report);
+    FitSettings settings = parse_model_spec(std::string(spec).substr(0, 4));
+    if (std::string(spec).size() > 4) settings.alpha_degree = 5;
+    StfModel m = fit_table(t, settings, &report);
     write_model(m, report, {spec, "table.h5", &t}, path);
     StfModel r = read_model(path);
     EXPECT_EQ(r.alpha_probability, m.alpha_probability);
@@ -135,6 +137,9 @@ TEST(FitTable, StoreLoadRoundTripIsExact) {
     EXPECT_EQ(r.escape_probability, m.escape_probability);
     EXPECT_EQ(r.sh, m.sh);
     EXPECT_EQ(r.sh_table, m.sh_table);
+    EXPECT_EQ(r.alpha_degree, m.alpha_degree);
+    EXPECT_EQ(r.sh_chebyshev, m.sh_chebyshev);
+    EXPECT_EQ(r.packed_bytes(), m.packed_bytes());
     ASSERT_EQ(r.vmf.size(), m.vmf.size());
     for (std::size_t i = 0; i < m.vmf.size(); ++i) {
       EXPECT_EQ(r.vmf[i].kappa, m.vmf[i].kappa);
@@ -224,6 +229,30 @@ TEST(FitTable, AutoChoosesTheTruthsSizeWithinNoise) {
   FitReport sh;
   fit_table(synthetic_table(one, 20000, 9), parse_model_spec("sh:auto"), &sh);
   EXPECT_GE(sh.chosen_size, 4);  // a kappa = 20 lobe needs more than the dipole
+}
+
+// Coefficients that are polynomials of degree <= D in cos(alpha) come back exactly.
+TEST(FitTable, AcrossAlphaChebyshevIsExactForPolynomials) {
+  StfModel m;
+  m.kind = ModelKind::kSh;
+  m.band_limit = 2;
+  m.sh_nz = 8;
+  const int bins = 12, count = 9;
+  for (int b = 0; b <= bins; ++b) m.alpha_edges.push_back(kPi * b / bins);
+  m.alpha_probability.assign(bins, 1.0 / bins);
+  m.status.assign(bins, BinStatus::kFitted);
+  std::vector<double> escapes(bins);
+  for (int b = 0; b < bins; ++b) {
+    double x = std::cos(0.5 * (m.alpha_edges[b] + m.alpha_edges[b + 1]));
+    escapes[b] = 100 + b;
+    for (int i = 0; i < count; ++i) m.sh.push_back(i == 0 ? 0.28 : 0.01 * (i - 4 * x + 3 * x * x * x));
+  }
+  std::vector<double> original = m.sh;
+  m.alpha_degree = 3;
+  compress_across_alpha(m, escapes);
+  ASSERT_EQ(m.sh_chebyshev.size(), std::size_t(4 * count));
+  for (std::size_t i = 0; i < original.size(); ++i) EXPECT_NEAR(m.sh[i], original[i], 1e-12);
+  EXPECT_LT(m.packed_bytes(), 128 + bins * 8 + 13 * 4 + 4 * count * 4 + 1);
 }
 
 TEST(FitTable, ParsesModelSpecs) {

@@ -45,6 +45,11 @@ struct StfModel {
   std::vector<double> sh;
   int sh_nz = 0;
   std::vector<float> sh_table;  // [bins * sh_nz * 2 sh_nz], density per steradian
+  // Across alpha: when alpha_degree >= 0 the coefficients are a Chebyshev series in
+  // cos(alpha) of that degree, [(alpha_degree + 1) * (band_limit + 1)^2], and `sh` holds its
+  // values at the bin centres; only the series is packed.
+  int alpha_degree = -1;
+  std::vector<double> sh_chebyshev;
 
   int bins() const { return int(alpha_probability.size()); }
   // Density p(w' | alpha bin) per steradian: the vMF mixture, or the tabulated clamped SH.
