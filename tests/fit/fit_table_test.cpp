@@ -127,8 +127,9 @@ TEST(FitTable, StoreLoadRoundTripIsExact) {
   std::string path = ::testing::TempDir() + "/model_" + std::to_string(::getpid()) + ".h5";
   for (const char* spec : {"vmf:2", "sh:6", "sh:6 across alpha"}) {
     FitReport report;
-    FitSettings settings = parse_model_spec(std::string(spec).substr(0, 4));
-    if (std::string(spec).size() > 4) settings.alpha_degree = 5;
+    const std::string name = spec;
+    FitSettings settings = parse_model_spec(name.substr(0, name.find(' ')));
+    if (name.find(' ') != std::string::npos) settings.alpha_degree = 5;
     StfModel m = fit_table(t, settings, &report);
     write_model(m, report, {spec, "table.h5", &t}, path);
     StfModel r = read_model(path);
