@@ -97,6 +97,7 @@ void fill_borrowed(std::vector<BinStatus>& status, std::vector<P>& params, const
 
 // Everything one pass of fitting (on the full table or one half) produces.
 struct BinFits {
+  const Table* table = nullptr;
   std::vector<BinStatus> status;
   std::vector<std::vector<VmfLobe>> lobes;  // vmf
   std::vector<std::vector<double>> sh;      // sh: raw projections, not yet smoothed
@@ -105,6 +106,7 @@ struct BinFits {
 BinFits fit_bins(const Table& t, int half, ModelKind kind, int size, const QuadratureLevels& levels,
                  const ShProjector* projector, const FitSettings& s) {
   BinFits fits;
+  fits.table = &t;
   fits.status.assign(t.alpha_bins, BinStatus::kBorrowed);
   fits.lobes.resize(t.alpha_bins);
   fits.sh.resize(t.alpha_bins);
@@ -137,7 +139,9 @@ std::vector<double> bin_probabilities(const BinFits& fits, int b, ModelKind kind
   if (kind == ModelKind::kVmf) {
     double kappa = 0;
     for (const VmfLobe& l : fits.lobes[b]) kappa = std::max(kappa, l.kappa);
-    return vmf_cell_probabilities(fits.lobes[b], levels.for_kappa(kappa));
+    double escapes = 0;
+    for (int h = 0; h < 2; ++h) escapes += sum(bin_counts(*fits.table, h, b));
+    return vmf_cell_probabilities(fits.lobes[b], levels.for_kappa(kappa, escapes));
   }
   std::vector<double> c = fits.sh[b];
   smooth_sh(c, size, t);

@@ -280,14 +280,16 @@ std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const Cell
   return lobes;
 }
 
-QuadratureLevels::QuadratureLevels(const DirectionGrid& grid)
-    : cell_width_(std::sqrt(4 * kPi / double(grid.cell_count()))) {
+QuadratureLevels::QuadratureLevels(const DirectionGrid& grid) {
   for (int level = 0; level <= kMaxLevel; ++level) levels_.push_back(grid.quadrature(level));
+  std::vector<double> omega = grid.solid_angles();
+  cell_solid_angle_ = *std::max_element(omega.begin(), omega.end());
 }
 
-const CellQuadrature& QuadratureLevels::for_kappa(double kappa) const {
-  int level = 1;
-  while (level < kMaxLevel && (cell_width_ / (1 << level)) * std::sqrt(kappa) > 0.5) ++level;
+const CellQuadrature& QuadratureLevels::for_kappa(double kappa, double counts) const {
+  const double limit = 0.25 * std::pow(std::max(counts, 1.0), -0.25);
+  int level = 0;
+  while (level < kMaxLevel && kappa * cell_solid_angle_ / (12 << (2 * level)) > limit) ++level;
   return levels_[level];
 }
 
@@ -352,9 +354,11 @@ VmfFitResult solve(const std::vector<double>& counts, const CellQuadrature& q,
 VmfFitResult fit_vmf(const std::vector<double>& counts, const QuadratureLevels& levels, int K,
                      const VmfFitOptions& options) {
   std::vector<VmfLobe> start = initial_lobes(counts, levels.at(0), K);
-  const CellQuadrature* q = &levels.for_kappa(max_kappa(start));
+  double n = 0;
+  for (double c : counts) n += c;
+  const CellQuadrature* q = &levels.for_kappa(max_kappa(start), n);
   VmfFitResult fit = solve(counts, *q, start, options);
-  const CellQuadrature* finer = &levels.for_kappa(max_kappa(fit.lobes));
+  const CellQuadrature* finer = &levels.for_kappa(max_kappa(fit.lobes), n);
   if (finer->per_cell > q->per_cell) {
     VmfFitResult refit = solve(counts, *finer, fit.lobes, options);
     refit.iterations += fit.iterations;

@@ -26,13 +26,15 @@ class QuadratureLevels {
   static constexpr int kMaxLevel = 3;
   explicit QuadratureLevels(const DirectionGrid& grid);
   const CellQuadrature& at(int level) const { return levels_[level]; }
-  // The coarsest level whose sub-cells are at most half the width 1/sqrt(kappa) of a lobe,
-  // at least 1 and at most kMaxLevel (beyond that, sub-cell widening takes over).
-  const CellQuadrature& for_kappa(double kappa) const;
+  // The coarsest level accurate enough for lobes up to `kappa` against `counts` escapes: the
+  // widened point rule errs by O((kappa a / 12)^2) (a = sub-cell solid angle), kept below
+  // the Poisson noise by kappa a / 12 <= 0.25 counts^(-1/4). At most kMaxLevel; beyond it
+  // the widening alone carries near-delta lobes.
+  const CellQuadrature& for_kappa(double kappa, double counts = 1e8) const;
 
  private:
   std::vector<CellQuadrature> levels_;
-  double cell_width_;  // sqrt(4 pi / cells)
+  double cell_solid_angle_;  // the largest cell's
 };
 
 // `counts` per cell of the grid; their total must be > 0. The quadrature level follows the

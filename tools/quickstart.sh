@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
 # stf Quick start on Debian 12.
 #   tools/quickstart.sh          install what is missing (apt), build, precompute the default
-#                                medium of data/ on both grids and plot it into out/
+#                                medium of data/ on both grids, fit it, and plot both into out/
 #   tools/quickstart.sh --test   the same set-up, then the whole test suite (ctest)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 packages=(cmake g++ make pkg-config libhdf5-dev libcli11-dev wcslib-dev libhealpix-cxx-dev
-          libgtest-dev python3-matplotlib python3-h5py python3-numpy)
+          libceres-dev libeigen3-dev libgtest-dev python3-matplotlib python3-h5py python3-numpy)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -32,4 +32,7 @@ mkdir -p out
 build/stf --config data/default_medium.toml precompute -o out/default_healpix.h5
 build/stf --config data/default_medium.toml precompute --grid csc:45 -o out/default_csc.h5
 build/stf plot out/default_csc.h5 out/default_healpix.h5 --alpha 30 -o out/default_alpha30.png
-echo "quickstart: tables and plot in out/ (out/default_alpha30.png: CSC above, HEALPix below)" >&2
+build/stf fit out/default_healpix.h5 --model vmf:4 --report out/default_vmf4.json -o out/default_vmf4.h5
+build/stf plot out/default_healpix.h5 --model out/default_vmf4.h5 --alpha 30 -o out/default_vmf4_alpha30.png
+echo "quickstart: in out/: default_alpha30.png (CSC above, HEALPix below)," \
+     "default_vmf4_alpha30.png (table above, fitted vmf:4 below)" >&2

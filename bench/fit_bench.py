@@ -1,0 +1,50 @@
+#!/usr/bin/python3
+"""Fit seconds per table: 90 alpha bins on csc:45 and healpix:16 (sigma_s 10, g 0.5, 1e6 paths),
+models vmf:1/4/8 and sh:8/16, on one thread and on all cores, as JSON (stdout and --out).
+
+Usage: bench/fit_bench.py [--out FILE] [--paths N]     Needs build/stf.
+"""
+import argparse
+import json
+import os
+import subprocess
+import tempfile
+
+import h5py
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+STF = os.path.join(ROOT, "build", "stf")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--out", default="")
+    ap.add_argument("--paths", default="1e6")
+    a = ap.parse_args()
+    cores = os.cpu_count()
+    results = {"paths": a.paths, "alpha_bins": 90, "cores": cores, "fits": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for grid in ["csc:45", "healpix:16"]:
+            table = os.path.join(tmp, "table.h5")
+            subprocess.run([STF, "precompute", "--sigma-s", "10", "--sigma-a", "0", "--g", "0.5", "--grid", grid,
+                            "--alpha-bins", "90", "--paths", a.paths, "--quiet", "-o", table], check=True)
+            for spec in ["vmf:1", "vmf:4", "vmf:8", "sh:8", "sh:16"]:
+                row = {"grid": grid, "model": spec}
+                for threads in [1, cores]:
+                    model = os.path.join(tmp, "model.h5")
+                    subprocess.run([STF, "fit", table, "--model", spec, "--threads", str(threads), "--quiet",
+                                    "-o", model], check=True)
+                    with h5py.File(model, "r") as f:
+                        row[f"seconds_{threads}_threads"] = round(float(f.attrs["fit_time_s"]), 3)
+                        row["model_bytes"] = int(f.attrs["model_bytes"])
+                results["fits"].append(row)
+                print(json.dumps(row), flush=True)
+    text = json.dumps(results, indent=1)
+    if a.out:
+        with open(a.out, "w") as f:
+            f.write(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
