@@ -112,6 +112,9 @@ class PoissonDeviance final : public ceres::CostFunction {
           const std::size_t i = c * q_.per_cell + j;
           const Vec3& x = q_.point[i];
           const double a = q_.weight[i], cosine = dot(mean, x);
+          // Beyond 40 e-folds below the peak a point adds nothing a double can hold relative
+          // to the lobe's mass (and exp would take its slow underflow path).
+          if (kappa * (1 - cosine) > 40 * (1 + kappa * a / 12)) continue;
           double v, vt, vm;
           if (widen) {
             const double stretch = 1 + kappa * a / 12, ke = kappa / stretch;

@@ -23,7 +23,7 @@ struct VmfFitResult {
 // Cell quadratures of one grid at levels 0 .. kMaxLevel, built once per table.
 class QuadratureLevels {
  public:
-  static constexpr int kMaxLevel = 3;
+  static constexpr int kMaxLevel = 2;
   explicit QuadratureLevels(const DirectionGrid& grid);
   const CellQuadrature& at(int level) const { return levels_[level]; }
   // The coarsest level accurate enough for lobes up to `kappa` against `counts` escapes: the
