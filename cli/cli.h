@@ -5,13 +5,21 @@
 #include <atomic>
 #include <cstdint>
 #include <stdexcept>
+#include <vector>
 #include <string>
 
 namespace CLI {
 class App;
 }
 
+namespace stf {
+struct PackEntry;
+}
+
 namespace stf::cli {
+
+// Writes a pack atomically (see AtomicOutput).
+void write_pack_file(const std::vector<PackEntry>& entries, const std::string& path, const std::string& option);
 
 // A user error. main() prints it as one line, "stf: error: <message>", and exits with status 2;
 // throwing (not exiting) lets destructors remove temporary files first.
@@ -62,6 +70,8 @@ class ProgressBar {
 
 void add_precompute_command(CLI::App& app);
 void add_plot_command(CLI::App& app);
+void add_pack_command(CLI::App& app);
+void add_sample_command(CLI::App& app);
 void add_fit_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
 

@@ -10,13 +10,14 @@
 #include "evaluate.h"
 #include "fit_table.h"
 #include "model_io.h"
+#include "stf/pack.h"
 
 namespace stf::cli {
 
 namespace {
 
 struct FitOptions {
-  std::string table, model = "vmf:4", output, report;
+  std::string table, model = "vmf:4", output, report, pack;
   std::string threads = "0";
   int alpha_degree = -1;
   bool quiet = false;
@@ -69,6 +70,7 @@ void run_fit(const FitOptions& o) {
   fit::write_model(model, report, {o.model, o.table, &table}, out.temp_path());
   out.commit();
   if (!o.report.empty()) write_text(report_json(report, model, o.model), o.report, "--report");
+  if (!o.pack.empty()) write_pack_file({PackEntry{"", model}}, o.pack, "--pack");
   if (!o.quiet)
     std::fprintf(stderr, "stf fit: %s size %d in %.3g s, %lld bytes (table %lld bytes) -> %s\n", o.model.c_str(),
                  report.chosen_size, report.fit_time_s, (long long)model.packed_bytes(),
@@ -108,6 +110,7 @@ void add_fit_command(CLI::App& app) {
   cmd->add_option("--model", o->model, "vmf:K, vmf:auto, sh:L or sh:auto")->capture_default_str();
   cmd->add_option("-o,--output", o->output, "Output model (HDF5)")->required();
   cmd->add_option("--report", o->report, "Per-bin diagnostics and model selection as JSON");
+  cmd->add_option("--pack", o->pack, "Also write the model as a binary pack for the sampler");
   cmd->add_option("--threads", o->threads, "Worker threads (0: all cores)")->capture_default_str();
   cmd->add_option("--alpha-degree", o->alpha_degree,
                   "sh: store each coefficient as a Chebyshev series of this degree in cos(alpha)")

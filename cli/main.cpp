@@ -14,6 +14,8 @@ int main(int argc, char** argv) {
   stf::cli::add_precompute_command(app);
   stf::cli::add_fit_command(app);
   stf::cli::add_eval_command(app);
+  stf::cli::add_pack_command(app);
+  stf::cli::add_sample_command(app);
   stf::cli::add_plot_command(app);
   try {
     app.parse(argc, argv);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "stf/pack.h"
 #include "stf/sh.h"
 
 namespace stf {
@@ -59,13 +60,6 @@ void StfModel::rebuild_sh_tables() {
   }
 }
 
-std::int64_t StfModel::packed_bytes() const {
-  const std::int64_t header = 128;  // magic, version, kind, medium, sizes, checksum
-  std::int64_t per_bin = 4 + 4;     // alpha probability and status
-  if (kind == ModelKind::kVmf) per_bin += std::int64_t(lobes) * 5 * 4;  // weight, kappa, mean xyz
-  else if (alpha_degree < 0) per_bin += std::int64_t(sh_count(band_limit)) * 4;
-  std::int64_t across = alpha_degree >= 0 ? std::int64_t(alpha_degree + 1) * sh_count(band_limit) * 4 : 0;
-  return header + std::int64_t(bins()) * per_bin + std::int64_t(alpha_edges.size()) * 4 + across;
-}
+std::int64_t StfModel::packed_bytes() const { return 32 + record_bytes(*this, 0); }
 
 }  // namespace stf

@@ -55,7 +55,7 @@ struct StfModel {
   // Density p(w' | alpha bin) per steradian: the vMF mixture, or the tabulated clamped SH.
   double direction_pdf(int bin, const Vec3& w) const;
   void rebuild_sh_tables();
-  // Size of the model's packed binary form: the parameters as float32 plus a fixed header.
+  // Size of a pack holding just this model (stf/pack.h): parameters as float32.
   std::int64_t packed_bytes() const;
 };
 

@@ -1,0 +1,147 @@
+// `stf pack`: models into one binary pack; `stf sample`: draw from a model, or evaluate its pdf.
+#include <CLI/CLI.hpp>
+#include <H5Cpp.h>
+
+#include <cstdio>
+#include <fstream>
+#include <memory>
+
+#include "cli.h"
+#include "h5io.h"
+#include "model_io.h"
+#include "rng.h"
+#include "stf/pack.h"
+#include "stf/sampler.h"
+
+namespace stf::cli {
+
+namespace {
+
+bool is_pack(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char magic[8] = {};
+  in.read(magic, 8);
+  return std::string(magic, 8) == "STFPACK1";
+}
+
+// A model from an stf-model HDF5 file or the first entry of a pack.
+StfModel load_model(const std::string& path) {
+  if (is_pack(path)) {
+    std::vector<PackEntry> entries;
+    std::string error;
+    if (!read_pack_file(path, entries, error)) fail(path + ": " + error);
+    if (entries.empty()) fail(path + ": the pack holds no model");
+    return entries.front().model;
+  }
+  if (fit::file_format(path) != "stf-model") fail("'" + path + "' is neither an stf model nor an stf pack");
+  return fit::read_model(path);
+}
+
+struct PackOptions {
+  std::vector<std::string> models, names;
+  std::string output;
+};
+
+void run_pack(const PackOptions& o) {
+  if (!o.names.empty() && o.names.size() != o.models.size()) fail("--name must be given once per model or not at all");
+  std::vector<PackEntry> entries;
+  for (std::size_t i = 0; i < o.models.size(); ++i) {
+    if (fit::file_format(o.models[i]) != "stf-model") fail("'" + o.models[i] + "' is not an stf model");
+    entries.push_back({o.names.empty() ? "" : o.names[i], fit::read_model(o.models[i])});
+  }
+  write_pack_file(entries, o.output, "-o");
+}
+
+struct SampleOptions {
+  std::string model, output, eval;
+  std::string count = "1e4", seed = "1";
+};
+
+void write_samples(const std::string& path, const std::vector<double>& point, const std::vector<double>& direction,
+                   const std::vector<double>& pdf, double escape) {
+  AtomicOutput out(path, "-o");
+  {
+    H5::Exception::dontPrint();
+    H5::H5File file(out.temp_path(), H5F_ACC_TRUNC);
+    h5::put_attr(file, "escape_probability", escape);
+    H5::Group g = file.createGroup("/samples");
+    const hsize_t n = pdf.size();
+    h5::put_dataset(g, "exit_point", {n, 3}, point.data());
+    h5::put_dataset(g, "exit_direction", {n, 3}, direction.data());
+    h5::put_dataset(g, "pdf", {n}, pdf.data());
+  }
+  out.commit();
+}
+
+void run_sample(const SampleOptions& o) {
+  ShellSampler sampler(load_model(o.model));
+  std::vector<double> point, direction, pdf;
+  if (!o.eval.empty()) {
+    std::vector<double> p, d;
+    try {
+      H5::Exception::dontPrint();
+      H5::H5File in(o.eval, H5F_ACC_RDONLY);
+      p = h5::get_dataset(in, "/samples/exit_point", {});
+      d = h5::get_dataset(in, "/samples/exit_direction", {});
+    } catch (const std::exception& e) {
+      fail("--eval: " + std::string(e.what()));
+    } catch (const H5::Exception& e) {
+      fail("--eval: cannot read " + o.eval + ": " + e.getDetailMsg());
+    }
+    if (p.size() != d.size() || p.size() % 3 != 0) fail("--eval: exit_point and exit_direction must both be [N, 3]");
+    for (std::size_t i = 0; i < p.size(); i += 3) {
+      Vec3 y{p[i], p[i + 1], p[i + 2]}, w{d[i], d[i + 1], d[i + 2]};
+      bool unit = std::abs(length(y) - 1) < 1e-6 && std::abs(length(w) - 1) < 1e-6;
+      pdf.push_back(unit ? sampler.pdf(y, w) : 0.0);  // off the domain: no support
+    }
+    write_samples(o.output, p, d, pdf, sampler.escape_probability());
+    return;
+  }
+  const std::int64_t n = parse_count(o.count, "--count", 1, std::int64_t(1) << 32);
+  std::uint64_t state = std::uint64_t(parse_count(o.seed, "--seed", 0, INT64_MAX));
+  auto u = [&] { return double(splitmix64(state) >> 11) * 0x1p-53; };
+  for (std::int64_t i = 0; i < n; ++i) {
+    double u0 = u(), u1 = u(), u2 = u(), u3 = u();
+    ExitSample s = sampler.sample(u0, u1, u2, u3);
+    point.insert(point.end(), {s.point.x, s.point.y, s.point.z});
+    direction.insert(direction.end(), {s.direction.x, s.direction.y, s.direction.z});
+    pdf.push_back(s.pdf);
+  }
+  write_samples(o.output, point, direction, pdf, sampler.escape_probability());
+}
+
+}  // namespace
+
+void write_pack_file(const std::vector<PackEntry>& entries, const std::string& path, const std::string& option) {
+  std::vector<std::uint8_t> bytes = write_pack(entries);
+  AtomicOutput out(path, option);
+  {
+    std::ofstream f(out.temp_path(), std::ios::binary);
+    f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+    if (!f) fail("cannot write " + path);
+  }
+  out.commit();
+}
+
+void add_pack_command(CLI::App& app) {
+  auto o = std::make_shared<PackOptions>();
+  CLI::App* cmd = app.add_subcommand("pack", "Pack fitted models into one compact binary file for the sampler");
+  cmd->add_option("models", o->models, "Fitted models (HDF5)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--name", o->names, "A name per model (e.g. the medium's)");
+  cmd->add_option("-o,--output", o->output, "Output pack")->required();
+  cmd->callback([o] { run_pack(*o); });
+}
+
+void add_sample_command(CLI::App& app) {
+  auto o = std::make_shared<SampleOptions>();
+  CLI::App* cmd = app.add_subcommand("sample", "Draw exit points and directions from a model, or evaluate its pdf");
+  cmd->add_option("model", o->model, "Fitted model (HDF5) or pack")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--count", o->count, "Samples to draw")->capture_default_str();
+  cmd->add_option("--seed", o->seed, "Random seed")->capture_default_str();
+  cmd->add_option("--eval", o->eval, "Evaluate the pdf at /samples/exit_point, /samples/exit_direction of this file")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("-o,--output", o->output, "Output samples (HDF5)")->required();
+  cmd->callback([o] { run_sample(*o); });
+}
+
+}  // namespace stf::cli

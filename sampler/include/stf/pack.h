@@ -1,0 +1,44 @@
+// The compact binary pack a renderer loads: one or many fitted models with their media.
+//
+// Layout (all little-endian):
+//   header, 32 bytes: magic "STFPACK1", u32 version (1), u32 model count,
+//                     u64 payload bytes, u64 FNV-1a 64 checksum of the payload
+//   payload: the model records back to back, each
+//     u32 record bytes, u32 name bytes, name (UTF-8, no terminator),
+//     u32 kind (0 vmf, 1 sh), u32 bins, u32 lobes or band limit, u32 SH table nz,
+//     i32 alpha degree (-1: none), u32 reserved,
+//     f64 tau, albedo, g, escape probability, absorbed fraction, truncated fraction,
+//     f32 alpha probability [bins], u8 bin status [bins] padded to 4 bytes,
+//     vmf: f32 [bins * lobes * 5] (weight, kappa, mean x, y, z)
+//     sh:  f32 [bins * (L+1)^2], or with alpha degree D >= 0 f32 [(D+1) * (L+1)^2]
+// Alpha bins are linear on [0, pi]. Loading validates everything: a truncated, corrupted or
+// foreign file gives an error message, never undefined behaviour.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "stf/model.h"
+
+namespace stf {
+
+inline constexpr std::uint32_t kPackVersion = 1;
+
+struct PackEntry {
+  std::string name;  // e.g. the medium's name in a scene; may be empty
+  StfModel model;
+};
+
+// Serialises entries (models must have linear alpha bins on [0, pi]).
+std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries);
+
+// Parses a pack; on failure returns false and sets `error` (one line).
+bool read_pack(const std::uint8_t* data, std::size_t size, std::vector<PackEntry>& entries, std::string& error);
+bool read_pack_file(const std::string& path, std::vector<PackEntry>& entries, std::string& error);
+
+// Bytes of one model's record in a pack (what StfModel::packed_bytes() reports, with an
+// empty name, plus the pack header).
+std::int64_t record_bytes(const StfModel& model, std::size_t name_bytes);
+
+}  // namespace stf

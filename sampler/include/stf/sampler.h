@@ -1,0 +1,64 @@
+// Importance sampling of a fitted shell transport function, with exact pdfs.
+//
+// Measures (DESIGN.md): a sample is an exit point y on the unit sphere and an exit direction
+// w', in the local frame where the start direction is +z. pdf() is per unit area of the unit
+// sphere per steradian and integrates to 1 over the (4 pi)^2 domain:
+//   p(y, w') = P(bin of alpha) / (2 pi (cos a0 - cos a1)) * p(R_z(-beta) w' | bin),
+// alpha = angle(y, +z) in [a0, a1), beta = azimuth of y: the exit point is uniform in area
+// within its alpha band, beta is uniform, and the direction density is the fitted one in the
+// frame where y lies in the x-z plane. All methods are const, thread-safe, allocation-free.
+#pragma once
+
+#include <vector>
+
+#include "stf/model.h"
+#include "stf/vec3.h"
+
+namespace stf {
+
+struct ExitSample {
+  Vec3 point;      // on the unit sphere (local frame)
+  Vec3 direction;  // unit exit direction (local frame)
+  double pdf = 0;  // per unit area of the unit sphere per steradian
+};
+
+struct WorldExit {
+  Vec3 point;      // world exit point, at distance `radius` from the start
+  Vec3 direction;  // world exit direction
+  double pdf = 0;  // per unit area of the sphere of that radius per steradian
+};
+
+class ShellSampler {
+ public:
+  // The model must be valid (as read_pack or fit/ produce it).
+  explicit ShellSampler(StfModel model);
+
+  // (u0, u1, u2, u3) in [0, 1)^4: u0 picks the alpha bin (its remainder places alpha in the
+  // bin), u1 the azimuth beta, u2 the lobe or SH cell (remainder reused), u3 the rest.
+  ExitSample sample(double u0, double u1, double u2, double u3) const;
+  // The density sample() draws from; 0 where the model has no support.
+  double pdf(const Vec3& point, const Vec3& direction) const;
+  // Probability that a path starting at the centre leaves the sphere at all.
+  double escape_probability() const { return model_.escape_probability; }
+
+  // World space: a path at `position` heading `direction` (unit) with free radius `radius`.
+  WorldExit sample_world(const Vec3& position, const Vec3& direction, double radius, double u0, double u1,
+                         double u2, double u3) const;
+  double pdf_world(const Vec3& position, const Vec3& direction, double radius, const Vec3& exit_point,
+                   const Vec3& exit_direction) const;
+
+  // The parts, each a sample/pdf pair (for tests and for renderers that want them alone).
+  int sample_alpha_bin(double u, double& remainder) const;
+  double alpha_bin_probability(int bin) const { return model_.alpha_probability[bin]; }
+  Vec3 sample_direction(int bin, double u2, double u3) const;
+  double direction_pdf(int bin, const Vec3& w) const { return model_.direction_pdf(bin, w); }
+
+  const StfModel& model() const { return model_; }
+
+ private:
+  StfModel model_;
+  std::vector<double> alpha_cdf_;  // [bins + 1]
+  std::vector<double> cell_cdf_;   // sh: [bins * (cells + 1)] over the equal-area cells
+};
+
+}  // namespace stf

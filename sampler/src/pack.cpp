@@ -1,0 +1,260 @@
+#include "stf/pack.h"
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+
+#include "stf/sh.h"
+
+namespace stf {
+
+namespace {
+
+constexpr char kMagic[8] = {'S', 'T', 'F', 'P', 'A', 'C', 'K', '1'};
+constexpr std::size_t kHeaderBytes = 32;
+
+std::uint64_t fnv1a(const std::uint8_t* p, std::size_t n) {
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  for (std::size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 0x100000001b3ull;
+  return h;
+}
+
+std::size_t pad4(std::size_t n) { return (n + 3) & ~std::size_t(3); }
+
+std::size_t parameter_count(int kind, std::uint32_t bins, std::uint32_t size, std::int32_t degree) {
+  if (kind == 0) return std::size_t(bins) * size * 5;
+  std::size_t count = std::size_t(size + 1) * (size + 1);
+  return degree >= 0 ? std::size_t(degree + 1) * count : std::size_t(bins) * count;
+}
+
+// Little-endian writer.
+struct Writer {
+  std::vector<std::uint8_t> out;
+  template <typename T>
+  void put(T v) {
+    std::uint8_t b[sizeof(T)];
+    std::memcpy(b, &v, sizeof(T));  // the supported targets are little-endian (checked below)
+    out.insert(out.end(), b, b + sizeof(T));
+  }
+  void bytes(const void* p, std::size_t n) {
+    if (n == 0) return;
+    auto* c = static_cast<const std::uint8_t*>(p);
+    out.insert(out.end(), c, c + n);
+  }
+  void align4() {
+    while (out.size() % 4) out.push_back(0);
+  }
+};
+
+// Bounds-checked little-endian reader: every read past the end fails instead of reading.
+struct Reader {
+  const std::uint8_t* p;
+  std::size_t size, at = 0;
+  bool ok = true;
+  template <typename T>
+  T get() {
+    T v{};
+    if (!ok || size - at < sizeof(T)) {
+      ok = false;
+      return v;
+    }
+    std::memcpy(&v, p + at, sizeof(T));
+    at += sizeof(T);
+    return v;
+  }
+  bool skip(std::size_t n) {
+    if (!ok || size - at < n) return ok = false;
+    at += n;
+    return true;
+  }
+};
+
+bool little_endian() {
+  std::uint32_t one = 1;
+  std::uint8_t first;
+  std::memcpy(&first, &one, 1);
+  return first == 1;
+}
+
+}  // namespace
+
+std::int64_t record_bytes(const StfModel& m, std::size_t name_bytes) {
+  const int kind = m.kind == ModelKind::kVmf ? 0 : 1;
+  const std::uint32_t size = kind == 0 ? std::uint32_t(m.lobes) : std::uint32_t(m.band_limit);
+  std::size_t n = 4 + 4 + pad4(name_bytes) + 6 * 4 + 6 * 8 + 4 * std::size_t(m.bins()) + pad4(std::size_t(m.bins()));
+  return std::int64_t(n + 4 * parameter_count(kind, std::uint32_t(m.bins()), size, m.alpha_degree));
+}
+
+std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries) {
+  Writer payload;
+  for (const PackEntry& e : entries) {
+    const StfModel& m = e.model;
+    const int kind = m.kind == ModelKind::kVmf ? 0 : 1;
+    const std::uint32_t bins = std::uint32_t(m.bins());
+    const std::uint32_t size = kind == 0 ? std::uint32_t(m.lobes) : std::uint32_t(m.band_limit);
+    payload.put(std::uint32_t(record_bytes(m, e.name.size())));
+    payload.put(std::uint32_t(e.name.size()));
+    payload.bytes(e.name.data(), e.name.size());
+    payload.align4();
+    for (std::uint32_t v : {std::uint32_t(kind), bins, size, std::uint32_t(m.sh_nz)}) payload.put(v);
+    payload.put(std::int32_t(m.alpha_degree));
+    payload.put(std::uint32_t(0));
+    for (double v : {m.tau, m.albedo, m.g, m.escape_probability, m.absorbed_fraction, m.truncated_fraction})
+      payload.put(v);
+    for (double p : m.alpha_probability) payload.put(float(p));
+    for (BinStatus s : m.status) payload.put(std::uint8_t(s));
+    payload.align4();
+    if (kind == 0) {
+      for (const VmfLobe& l : m.vmf)
+        for (double v : {l.weight, l.kappa, l.mean.x, l.mean.y, l.mean.z}) payload.put(float(v));
+    } else {
+      for (double v : m.alpha_degree >= 0 ? m.sh_chebyshev : m.sh) payload.put(float(v));
+    }
+  }
+  Writer pack;
+  for (char c : kMagic) pack.put(std::uint8_t(c));
+  pack.put(kPackVersion);
+  pack.put(std::uint32_t(entries.size()));
+  pack.put(std::uint64_t(payload.out.size()));
+  pack.put(fnv1a(payload.out.data(), payload.out.size()));
+  pack.bytes(payload.out.data(), payload.out.size());
+  return pack.out;
+}
+
+namespace {
+
+bool fail(std::string& error, const std::string& why) {
+  error = why;
+  return false;
+}
+
+bool finite(double v) { return std::isfinite(v); }
+
+// One model record; `r` is positioned at its start.
+bool read_record(Reader& r, PackEntry& e, std::string& error) {
+  const std::size_t start = r.at;
+  const std::uint32_t record = r.get<std::uint32_t>(), name_bytes = r.get<std::uint32_t>();
+  if (!r.ok || record > r.size - start || name_bytes > record) return fail(error, "truncated model record");
+  e.name.assign(reinterpret_cast<const char*>(r.p + r.at), name_bytes);
+  r.skip(pad4(name_bytes));
+  const std::uint32_t kind = r.get<std::uint32_t>(), bins = r.get<std::uint32_t>();
+  const std::uint32_t size = r.get<std::uint32_t>(), nz = r.get<std::uint32_t>();
+  const std::int32_t degree = r.get<std::int32_t>();
+  r.get<std::uint32_t>();
+  if (!r.ok) return fail(error, "truncated model record");
+  if (kind > 1) return fail(error, "unknown model kind " + std::to_string(kind));
+  if (bins < 1 || bins > 100000) return fail(error, "alpha bin count out of range");
+  if (kind == 0 && (size < 1 || size > 64)) return fail(error, "lobe count out of range");
+  if (kind == 1 && (size > 64 || nz < 1 || nz > 256 || degree < -1 || degree > 64 ||
+                    std::size_t(bins) * nz * nz * 2 > (std::size_t(1) << 27)))
+    return fail(error, "SH band limit, table size or alpha degree out of range");
+  if (std::int64_t(record) != std::int64_t(4 + 4 + pad4(name_bytes) + 6 * 4 + 6 * 8 + 4 * std::size_t(bins) + pad4(bins) +
+                                            4 * parameter_count(int(kind), bins, size, kind == 1 ? degree : -1)))
+    return fail(error, "model record size does not match its contents");
+
+  StfModel& m = e.model;
+  m.kind = kind == 0 ? ModelKind::kVmf : ModelKind::kSh;
+  m.tau = r.get<double>(), m.albedo = r.get<double>(), m.g = r.get<double>();
+  m.escape_probability = r.get<double>(), m.absorbed_fraction = r.get<double>(), m.truncated_fraction = r.get<double>();
+  if (!(m.tau > 0 && finite(m.tau) && m.albedo >= 0 && m.albedo <= 1 && m.g > -1 && m.g < 1 &&
+        m.escape_probability >= 0 && m.escape_probability <= 1 && finite(m.absorbed_fraction) &&
+        finite(m.truncated_fraction)))
+    return fail(error, "medium parameters out of range");
+  double total = 0;
+  for (std::uint32_t b = 0; b < bins; ++b) {
+    double p = r.get<float>();
+    if (!(p >= 0 && finite(p))) return fail(error, "alpha probability is negative or not finite");
+    m.alpha_probability.push_back(p);
+    total += p;
+  }
+  if (total > 0 && std::abs(total - 1) > 1e-4) return fail(error, "alpha probabilities do not sum to 1");
+  for (std::uint32_t b = 0; b <= bins; ++b) m.alpha_edges.push_back(kPi * b / bins);
+  for (std::uint32_t b = 0; b < bins; ++b) {
+    std::uint8_t s = r.get<std::uint8_t>();
+    if (s > 2) return fail(error, "bin status out of range");
+    m.status.push_back(BinStatus(s));
+  }
+  r.skip(pad4(bins) - bins);
+  if (kind == 0) {
+    m.lobes = int(size);
+    for (std::size_t i = 0; i < std::size_t(bins) * size; ++i) {
+      double w = r.get<float>(), k = r.get<float>(), x = r.get<float>(), y = r.get<float>(), z = r.get<float>();
+      double len = std::sqrt(x * x + y * y + z * z);
+      if (!(w >= 0 && finite(w) && k >= 0 && k <= 1e9 && finite(len) && len > 0.5 && len < 2))
+        return fail(error, "vMF lobe parameters out of range");
+      m.vmf.push_back({w, k, {x / len, y / len, z / len}});
+    }
+    for (std::uint32_t b = 0; b < bins; ++b) {
+      double s = 0;
+      for (std::uint32_t k = 0; k < size; ++k) s += m.vmf[b * size + k].weight;
+      if (std::abs(s - 1) > 1e-4) return fail(error, "vMF weights of a bin do not sum to 1");
+      for (std::uint32_t k = 0; k < size; ++k) m.vmf[b * size + k].weight /= s;
+    }
+  } else {
+    m.band_limit = int(size);
+    m.sh_nz = int(nz);
+    m.alpha_degree = degree;
+    std::vector<double>& target = degree >= 0 ? m.sh_chebyshev : m.sh;
+    for (std::size_t i = 0; i < parameter_count(1, bins, size, degree); ++i) {
+      double v = r.get<float>();
+      if (!(std::abs(v) <= 1e6)) return fail(error, "SH coefficient out of range");
+      target.push_back(v);
+    }
+    if (degree >= 0) {  // evaluate the Chebyshev series at the bin centres
+      const int count = sh_count(int(size));
+      m.sh.assign(std::size_t(bins) * count, 0.0);
+      for (std::uint32_t b = 0; b < bins; ++b) {
+        double x = std::cos(kPi * (b + 0.5) / bins);
+        for (int j = 0; j <= degree; ++j) {
+          double t = std::cos(j * std::acos(x));
+          for (int i = 0; i < count; ++i) m.sh[std::size_t(b) * count + i] += t * m.sh_chebyshev[std::size_t(j) * count + i];
+        }
+      }
+    }
+    m.rebuild_sh_tables();
+    for (float v : m.sh_table)
+      if (!std::isfinite(v)) return fail(error, "SH density not finite");
+  }
+  if (!r.ok || r.at != start + record) return fail(error, "model record size does not match its contents");
+  return true;
+}
+
+}  // namespace
+
+bool read_pack(const std::uint8_t* data, std::size_t size, std::vector<PackEntry>& entries, std::string& error) {
+  entries.clear();
+  if (!little_endian()) return fail(error, "stf packs need a little-endian machine");
+  if (size < kHeaderBytes) return fail(error, "not an stf pack (too short)");
+  if (std::memcmp(data, kMagic, 8) != 0) return fail(error, "not an stf pack (bad magic)");
+  Reader r{data, size, 8};
+  const std::uint32_t version = r.get<std::uint32_t>(), count = r.get<std::uint32_t>();
+  const std::uint64_t payload = r.get<std::uint64_t>(), checksum = r.get<std::uint64_t>();
+  if (version != kPackVersion) return fail(error, "unsupported pack version " + std::to_string(version));
+  if (payload != size - kHeaderBytes) return fail(error, "pack size does not match its header (truncated?)");
+  if (fnv1a(data + kHeaderBytes, payload) != checksum) return fail(error, "pack checksum mismatch (corrupted)");
+  if (count > payload / 100 + 1) return fail(error, "model count out of range");
+  for (std::uint32_t i = 0; i < count; ++i) {
+    PackEntry e;
+    if (!read_record(r, e, error)) {
+      entries.clear();
+      error = "model " + std::to_string(i) + ": " + error;
+      return false;
+    }
+    entries.push_back(std::move(e));
+  }
+  if (r.at != size) {
+    entries.clear();
+    return fail(error, "trailing bytes after the last model");
+  }
+  return true;
+}
+
+bool read_pack_file(const std::string& path, std::vector<PackEntry>& entries, std::string& error) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return fail(error, "cannot open " + path);
+  std::vector<std::uint8_t> data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  return read_pack(data.data(), data.size(), entries, error);
+}
+
+}  // namespace stf

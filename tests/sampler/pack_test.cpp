@@ -1,0 +1,106 @@
+// The binary pack: exact round trips, and the sampler's density equals the fitter's.
+#include "stf/pack.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "fit_table.h"
+#include "precompute.h"
+#include "rng.h"
+#include "stf/sampler.h"
+#include "test_models.h"
+
+namespace stf {
+namespace {
+
+Vec3 random_direction(std::uint64_t& s) {
+  double z = 2 * (double(splitmix64(s) >> 11) * 0x1p-53) - 1, phi = 2 * kPi * (double(splitmix64(s) >> 11) * 0x1p-53);
+  double r = std::sqrt(1 - z * z);
+  return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+std::vector<PackEntry> round_trip(const std::vector<PackEntry>& in) {
+  std::vector<std::uint8_t> bytes = write_pack(in);
+  std::vector<PackEntry> out;
+  std::string error;
+  EXPECT_TRUE(read_pack(bytes.data(), bytes.size(), out, error)) << error;
+  return out;
+}
+
+TEST(Pack, RoundTripKeepsModelsToFloatPrecision) {
+  std::vector<PackEntry> in = {{"milk", test::make_vmf_model()}, {"", test::make_sh_model()}};
+  std::vector<PackEntry> out = round_trip(in);
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_EQ(out[0].name, "milk");
+  // One header; each record as packed_bytes() reports it, plus its name padded to 4 bytes.
+  EXPECT_EQ(write_pack(in).size(), std::size_t(in[0].model.packed_bytes() + in[1].model.packed_bytes() - 32 + 4));
+  std::uint64_t s = 61;
+  for (std::size_t e = 0; e < in.size(); ++e) {
+    EXPECT_EQ(out[e].model.tau, in[e].model.tau);
+    EXPECT_EQ(out[e].model.escape_probability, in[e].model.escape_probability);
+    for (int b = 0; b < in[e].model.bins(); ++b)
+      for (int i = 0; i < 200; ++i) {
+        Vec3 w = random_direction(s);
+        double a = in[e].model.direction_pdf(b, w), p = out[e].model.direction_pdf(b, w);
+        // float32 parameters: kappa (1 - cos) amplifies their 6e-8 rounding in the tails.
+        EXPECT_NEAR(p, a, 1e-4 * a + 1e-9) << "entry " << e << " bin " << b;
+      }
+  }
+}
+
+// The same fitted model reaches a renderer through two paths, the fitter's double-precision
+// StfModel and the float32 pack: their densities agree to float precision at random points.
+TEST(Pack, SamplerDensityEqualsTheFittersDensity) {
+  PrecomputeSettings settings;
+  settings.paths = 40000;
+  settings.grid = "healpix:4";
+  settings.alpha_bins = 9;
+  Table t = *precompute({4, 0.5, 0.5, 1}, settings);
+  for (const char* spec : {"vmf:3", "sh:6"}) {
+    StfModel fitted = fit::fit_table(t, fit::parse_model_spec(spec));
+    ShellSampler from_pack(round_trip({{"", fitted}}).front().model), direct(fitted);
+    std::uint64_t s = 62;
+    for (int i = 0; i < 2000; ++i) {
+      Vec3 y = random_direction(s), w = random_direction(s);
+      double a = direct.pdf(y, w), p = from_pack.pdf(y, w);
+      ASSERT_NEAR(p, a, 1e-4 * a + 1e-9) << spec;
+    }
+  }
+}
+
+TEST(Pack, AcrossAlphaSeriesIsPackedAndRebuilt) {
+  StfModel m = test::make_sh_model();
+  m.alpha_degree = 1;
+  std::vector<double> escapes(m.bins(), 100);
+  fit::compress_across_alpha(m, escapes);
+  StfModel r = round_trip({{"", m}}).front().model;
+  EXPECT_EQ(r.alpha_degree, 1);
+  for (std::size_t i = 0; i < m.sh.size(); ++i) EXPECT_NEAR(r.sh[i], m.sh[i], 1e-6);
+  EXPECT_EQ(write_pack({{"", m}}).size(), std::size_t(m.packed_bytes()));
+}
+
+TEST(Pack, RejectsForeignTruncatedAndCorruptedFiles) {
+  std::vector<std::uint8_t> good = write_pack({{"x", test::make_vmf_model()}});
+  std::vector<PackEntry> out;
+  std::string error;
+  for (std::size_t n = 0; n < good.size(); n += 7) {
+    EXPECT_FALSE(read_pack(good.data(), n, out, error)) << n;
+    EXPECT_FALSE(error.empty());
+  }
+  std::vector<std::uint8_t> bad = good;
+  bad[8] = 2;  // version
+  EXPECT_FALSE(read_pack(bad.data(), bad.size(), out, error));
+  EXPECT_NE(error.find("version"), std::string::npos);
+  bad = good;
+  bad[100] ^= 0x40;  // payload byte: checksum catches it
+  EXPECT_FALSE(read_pack(bad.data(), bad.size(), out, error));
+  EXPECT_NE(error.find("checksum"), std::string::npos);
+  bad = good;
+  bad[0] = 'X';
+  EXPECT_FALSE(read_pack(bad.data(), bad.size(), out, error));
+  EXPECT_TRUE(out.empty());
+}
+
+}  // namespace
+}  // namespace stf

@@ -1,0 +1,250 @@
+// Every sampler against its own pdf (chi-square), and the pdf against its measure.
+#include "stf/sampler.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "chi2.h"
+#include "rng.h"
+#include "seed.h"
+#include "stf/vmf.h"
+#include "test_models.h"
+
+namespace stf {
+namespace {
+
+struct Uniforms {
+  std::uint64_t state;
+  double operator()() { return double(splitmix64(state) >> 11) * 0x1p-53; }
+};
+
+// Composite Gauss-Legendre (8 points) of f over [a, b] in `panels` panels.
+template <typename F>
+double integrate(F f, double a, double b, int panels = 64) {
+  static const double x[4] = {0.1834346424956498, 0.5255324099163290, 0.7966664774136267, 0.9602898564975363};
+  static const double w[4] = {0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763};
+  double h = (b - a) / panels, s = 0;
+  for (int p = 0; p < panels; ++p) {
+    double mid = a + (p + 0.5) * h;
+    for (int i = 0; i < 4; ++i) s += w[i] * (f(mid - 0.5 * h * x[i]) + f(mid + 0.5 * h * x[i]));
+  }
+  return 0.5 * h * s;
+}
+
+// Directions binned around `axis`: t = 1 - cos(theta) in n_t bins on [0, t_max] (quadratic
+// spacing: finer near the axis) plus one tail bin, times n_phi azimuth bins.
+struct AxisBins {
+  Vec3 axis, b1, b2;
+  double t_max;
+  int n_t = 24, n_phi = 8;
+  AxisBins(Vec3 a, double t) : axis(a), t_max(t) { orthonormal_basis(axis, b1, b2); }
+  int bins() const { return (n_t + 1) * n_phi; }
+  double t_edge(int i) const { return i > n_t ? 2.0 : t_max * double(i) * i / (double(n_t) * n_t); }
+  int bin(const Vec3& d) const {
+    double t = 1 - dot(d, axis), phi = std::atan2(dot(d, b2), dot(d, b1));
+    phi = phi < 0 ? phi + 2 * kPi : phi;
+    int it = t >= t_max ? n_t : std::min(n_t - 1, int(std::sqrt(std::max(0.0, t / t_max)) * n_t));
+    return it * n_phi + std::min(n_phi - 1, int(phi / (2 * kPi) * n_phi));
+  }
+  // Expected probabilities of a density given per steradian: integrated in (t, phi).
+  template <typename Pdf>
+  std::vector<double> expected(Pdf pdf) const {
+    std::vector<double> e(bins());
+    for (int it = 0; it <= n_t; ++it)
+      for (int ip = 0; ip < n_phi; ++ip) {
+        double p0 = 2 * kPi * ip / n_phi, p1 = 2 * kPi * (ip + 1) / n_phi;
+        e[it * n_phi + ip] = integrate(
+            [&](double t) {
+              double s = std::sqrt(std::max(0.0, t * (2 - t)));
+              return integrate(
+                  [&](double phi) {
+                    Vec3 d{s * std::cos(phi), s * std::sin(phi), 1 - t};
+                    return pdf(Vec3{d.x * b1.x + d.y * b2.x + d.z * axis.x, d.x * b1.y + d.y * b2.y + d.z * axis.y,
+                                    d.x * b1.z + d.y * b2.z + d.z * axis.z});
+                  },
+                  p0, p1, 4);
+            },
+            t_edge(it), t_edge(it + 1), 16);
+      }
+    return e;
+  }
+};
+
+template <typename Sample, typename Pdf>
+test::Chi2Result chi2_directions(Sample sample, Pdf pdf, const AxisBins& bins, int n, std::uint64_t seed) {
+  std::vector<double> observed(bins.bins(), 0), expected = bins.expected(pdf);
+  Uniforms u{seed};
+  for (int i = 0; i < n; ++i) observed[bins.bin(sample(u(), u()))] += 1;
+  for (double& e : expected) e *= n;
+  return test::chi2_test(observed, expected);
+}
+
+TEST(Sampler, VmfLobeMatchesItsPdfChiSquare) {
+  const std::uint64_t seed = test::test_seed(51);
+  SCOPED_TRACE(test::seed_trace(seed));
+  for (double kappa : {0.0, 1e-3, 1.0, 100.0, 1e5}) {
+    VmfLobe lobe{1, kappa, normalize({0.3, -0.4, 0.8})};
+    AxisBins bins(lobe.mean, std::min(2.0, 30 / std::max(kappa, 1e-9)));
+    test::Chi2Result r = chi2_directions([&](double a, double b) { return sample_vmf(lobe, a, b); },
+                                         [&](const Vec3& w) { return vmf_pdf(kappa, dot(lobe.mean, w)); }, bins,
+                                         400000, seed);
+    EXPECT_GT(r.p_value, test::kChi2Alpha) << "kappa " << kappa << ": " << r.describe();
+  }
+}
+
+TEST(Sampler, DirectionSamplersMatchTheirPdfChiSquare) {
+  const std::uint64_t seed = test::test_seed(52);
+  SCOPED_TRACE(test::seed_trace(seed));
+  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model()}) {
+    ShellSampler s(model);
+    for (int bin : {0, 1}) {
+      AxisBins bins({0, 0, 1}, 2.0);
+      bins.n_t = 16;
+      test::Chi2Result r = chi2_directions([&](double a, double b) { return s.sample_direction(bin, a, b); },
+                                           [&](const Vec3& w) { return s.direction_pdf(bin, w); }, bins, 400000, seed + bin);
+      EXPECT_GT(r.p_value, test::kChi2Alpha) << (model.kind == ModelKind::kVmf ? "vmf" : "sh") << " bin " << bin << ": " << r.describe();
+    }
+  }
+}
+
+// The whole sample: alpha bin, the position of cos(alpha) inside it, beta, and the direction
+// relative to the exit point, against the pdf's own marginals.
+TEST(Sampler, FullSampleMatchesPdfChiSquare) {
+  const std::uint64_t seed = test::test_seed(53);
+  SCOPED_TRACE(test::seed_trace(seed));
+  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model()}) {
+    ShellSampler s(model);
+    const int bins = model.bins(), sub = 3, quarters = 4, n = 600000;
+    AxisBins dir({0, 0, 1}, 2.0);
+    dir.n_t = 6;
+    dir.n_phi = 4;
+    // Expected: P(bin) * 1/sub (area-uniform within the band) * 1/4 (beta) * P(direction cell | bin).
+    std::vector<double> expected, observed(bins * sub * quarters * dir.bins(), 0);
+    for (int b = 0; b < bins; ++b) {
+      std::vector<double> d = dir.expected([&](const Vec3& w) { return s.direction_pdf(b, w); });
+      for (int k = 0; k < sub * quarters; ++k)
+        for (double p : d) expected.push_back(n * model.alpha_probability[b] / (sub * quarters) * p);
+    }
+    Uniforms u{seed};
+    for (int i = 0; i < n; ++i) {
+      ExitSample x = s.sample(u(), u(), u(), u());
+      double alpha = std::atan2(std::hypot(x.point.x, x.point.y), x.point.z);
+      int b = std::min(bins - 1, int(alpha / kPi * bins));
+      double c0 = std::cos(model.alpha_edges[b]), c1 = std::cos(model.alpha_edges[b + 1]);
+      int k = std::min(sub - 1, int((c0 - x.point.z) / (c0 - c1) * sub));
+      double beta = std::atan2(x.point.y, x.point.x);
+      beta = beta < 0 ? beta + 2 * kPi : beta;
+      int q = std::min(quarters - 1, int(beta / (2 * kPi) * quarters));
+      double cb = std::cos(-beta), sb = std::sin(-beta);
+      Vec3 local{cb * x.direction.x - sb * x.direction.y, sb * x.direction.x + cb * x.direction.y, x.direction.z};
+      observed[((b * sub + k) * quarters + q) * dir.bins() + dir.bin(local)] += 1;
+    }
+    test::Chi2Result r = test::chi2_test(observed, expected);
+    EXPECT_GT(r.p_value, test::kChi2Alpha) << r.describe();
+  }
+}
+
+TEST(Sampler, PdfOfASampleIsTheReturnedPdf) {
+  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model()}) {
+    ShellSampler s(model);
+    Uniforms u{54};
+    for (int i = 0; i < 20000; ++i) {
+      ExitSample x = s.sample(u(), u(), u(), u());
+      ASSERT_GT(x.pdf, 0);
+      ASSERT_NEAR(s.pdf(x.point, x.direction), x.pdf, 1e-9 * x.pdf);
+      ASSERT_NEAR(length(x.point), 1, 1e-12);
+      ASSERT_NEAR(length(x.direction), 1, 1e-12);
+    }
+  }
+}
+
+// Stratified quadrature over the (4 pi)^2 domain. The pdf is constant in the exit point
+// within an alpha band but for the rotation by beta, so each band is its area times the
+// beta-average at its middle; directions on a fine (z, phi) midpoint grid, which refines the
+// SH model's equal-area cells exactly and resolves the kappa = 80 lobe to ~1e-4.
+TEST(Sampler, PdfIntegratesToOne) {
+  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model()}) {
+    ShellSampler s(model);
+    const int nb = 3, nz = 384, nphi = 768;
+    double total = 0;
+    for (int bin = 0; bin < model.bins(); ++bin) {
+      double a0 = model.alpha_edges[bin], a1 = model.alpha_edges[bin + 1], alpha = 0.5 * (a0 + a1);
+      double band = 2 * kPi * (std::cos(a0) - std::cos(a1));
+      for (int j = 0; j < nb; ++j) {
+        double beta = 2 * kPi * (j + 0.5) / nb;
+        Vec3 y{std::sin(alpha) * std::cos(beta), std::sin(alpha) * std::sin(beta), std::cos(alpha)};
+        double directions = 0;
+        for (int k = 0; k < nz; ++k) {
+          double wz = -1 + 2 * (k + 0.5) / nz, wr = std::sqrt(1 - wz * wz);
+          for (int l = 0; l < nphi; ++l) {
+            double phi = 2 * kPi * (l + 0.5) / nphi;
+            directions += s.pdf(y, {wr * std::cos(phi), wr * std::sin(phi), wz});
+          }
+        }
+        total += band / nb * directions * 4 * kPi / (nz * nphi);
+      }
+    }
+    EXPECT_NEAR(total, 1, 1e-3) << (model.kind == ModelKind::kVmf ? "vmf" : "sh");
+  }
+}
+
+// E[1_A / pdf] = |A| where the pdf is positive on A: A = exit points with alpha in bins 1..2
+// (any beta), directions in the upper hemisphere: |A| = 2 pi (cos a1 - cos a3) * 2 pi.
+TEST(Sampler, InversePdfRecoversTheMeasureOfRegions) {
+  ShellSampler s(test::make_vmf_model());
+  const StfModel& m = s.model();
+  const double measure = 2 * kPi * (std::cos(m.alpha_edges[1]) - std::cos(m.alpha_edges[3])) * 2 * kPi;
+  Uniforms u{55};
+  const int n = 400000;
+  double sum = 0, sum2 = 0;
+  for (int i = 0; i < n; ++i) {
+    ExitSample x = s.sample(u(), u(), u(), u());
+    double alpha = std::acos(std::clamp(x.point.z, -1.0, 1.0));
+    bool in = alpha >= m.alpha_edges[1] && alpha < m.alpha_edges[3] && x.direction.z > 0;
+    double v = in ? 1 / x.pdf : 0;
+    sum += v;
+    sum2 += v * v;
+  }
+  double mean = sum / n, error = std::sqrt((sum2 / n - mean * mean) / n);
+  EXPECT_NEAR(mean, measure, 6 * error) << "standard error " << error;
+}
+
+TEST(Sampler, WorldSpaceSamplesAreRotatedLocalOnes) {
+  ShellSampler s(test::make_vmf_model());
+  Uniforms u{56};
+  const int bins = s.model().bins(), n = 300000;
+  std::vector<double> observed(bins, 0), expected(bins);
+  for (int b = 0; b < bins; ++b) expected[b] = n * s.model().alpha_probability[b];
+  for (int i = 0; i < n; ++i) {
+    Vec3 start{u() * 10, u() * 10, u() * 10}, heading = sample_vmf({1, 0, {0, 0, 1}}, u(), u());
+    double radius = 0.5 + 3 * u();
+    WorldExit w = s.sample_world(start, heading, radius, u(), u(), u(), u());
+    Vec3 d{(w.point.x - start.x) / radius, (w.point.y - start.y) / radius, (w.point.z - start.z) / radius};
+    ASSERT_NEAR(length(d), 1, 1e-9);
+    ASSERT_NEAR(s.pdf_world(start, heading, radius, w.point, w.direction), w.pdf, 1e-8 * w.pdf);
+    // The exit point's angle to the heading is the local alpha: same marginal.
+    double alpha = std::acos(std::clamp(dot(d, heading), -1.0, 1.0));
+    observed[std::min(bins - 1, int(alpha / kPi * bins))] += 1;
+  }
+  test::Chi2Result r = test::chi2_test(observed, expected);
+  EXPECT_GT(r.p_value, test::kChi2Alpha) << r.describe();
+}
+
+TEST(Sampler, ExtremeUniformsStayFinite) {
+  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model()}) {
+    ShellSampler s(model);
+    const double us[] = {0.0, 1e-300, 0.5, std::nextafter(1.0, 0.0)};
+    for (double a : us)
+      for (double b : us)
+        for (double c : us)
+          for (double d : us) {
+            ExitSample x = s.sample(a, b, c, d);
+            ASSERT_TRUE(std::isfinite(x.pdf) && x.pdf > 0);
+            ASSERT_TRUE(std::isfinite(x.point.x + x.point.y + x.point.z + x.direction.x + x.direction.y + x.direction.z));
+          }
+  }
+}
+
+}  // namespace
+}  // namespace stf

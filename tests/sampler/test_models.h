@@ -1,0 +1,52 @@
+// Small hand-made models for the sampler tests: a vMF model and an SH model over a few alpha
+// bins, with every kind of lobe the sampler must handle.
+#pragma once
+
+#include <cmath>
+
+#include "stf/model.h"
+#include "stf/sh.h"
+
+namespace stf::test {
+
+inline StfModel make_vmf_model() {
+  StfModel m;
+  m.kind = ModelKind::kVmf;
+  m.tau = 3, m.albedo = 0.9, m.g = 0.4, m.escape_probability = 0.7;
+  m.lobes = 3;
+  const int bins = 6;
+  for (int b = 0; b <= bins; ++b) m.alpha_edges.push_back(kPi * b / bins);
+  m.alpha_probability = {0.3, 0.25, 0.2, 0.0, 0.15, 0.1};  // bin 3 is empty
+  m.status.assign(bins, BinStatus::kFitted);
+  for (int b = 0; b < bins; ++b) {
+    double a = 0.5 * (m.alpha_edges[b] + m.alpha_edges[b + 1]);
+    m.vmf.push_back({0.6, 5.0 + b, normalize({std::sin(a), 0, std::cos(a)})});
+    m.vmf.push_back({0.3, 80, normalize({std::sin(a), 0.2, std::cos(a) + 0.3})});
+    m.vmf.push_back({0.1, 0.0, {0, 0, 1}});  // a uniform lobe
+  }
+  return m;
+}
+
+inline StfModel make_sh_model() {
+  StfModel m;
+  m.kind = ModelKind::kSh;
+  m.tau = 1, m.albedo = 0.5, m.g = -0.2, m.escape_probability = 0.4;
+  m.band_limit = 4;
+  m.sh_nz = 16;
+  const int bins = 4, count = sh_count(m.band_limit);
+  for (int b = 0; b <= bins; ++b) m.alpha_edges.push_back(kPi * b / bins);
+  m.alpha_probability = {0.4, 0.3, 0.2, 0.1};
+  m.status.assign(bins, BinStatus::kFitted);
+  for (int b = 0; b < bins; ++b) {
+    std::vector<double> c(count, 0.0);
+    c[0] = 1 / std::sqrt(4 * kPi);
+    c[2] = 0.25 + 0.05 * b;  // l = 1, m = 0: towards +z
+    c[3] = 0.15;             // l = 1, m = 1: towards +x
+    c[6] = 0.3;              // l = 2, m = 0: strong enough to clamp somewhere
+    m.sh.insert(m.sh.end(), c.begin(), c.end());
+  }
+  m.rebuild_sh_tables();
+  return m;
+}
+
+}  // namespace stf::test
