@@ -3,24 +3,12 @@
 #include <algorithm>
 #include <cmath>
 
+#include "stf/math.h"
 #include "stf/vmf.h"
 
 namespace stf {
 
 namespace {
-
-// Index i with cdf[i] <= u < cdf[i + 1] among [first, last) (cdf non-decreasing, cdf[first]
-// = 0), skipping zero-width entries; `remainder` is u's position inside it, in [0, 1).
-int sample_cdf(const double* cdf, int n, double u, double& remainder) {
-  double total = cdf[n];
-  double target = u * total;
-  int i = int(std::upper_bound(cdf, cdf + n + 1, target) - cdf) - 1;
-  i = std::clamp(i, 0, n - 1);
-  while (i > 0 && cdf[i + 1] == cdf[i]) --i;  // u at the very top: land on a non-empty entry
-  double width = cdf[i + 1] - cdf[i];
-  remainder = width > 0 ? std::clamp((target - cdf[i]) / width, 0.0, std::nextafter(1.0, 0.0)) : 0.0;
-  return i;
-}
 
 Vec3 rotate_z(const Vec3& v, double c, double s) { return {c * v.x - s * v.y, s * v.x + c * v.y, v.z}; }
 
@@ -28,50 +16,84 @@ Vec3 rotate_z(const Vec3& v, double c, double s) { return {c * v.x - s * v.y, s 
 
 ShellSampler::ShellSampler(StfModel model) : model_(std::move(model)) {
   const int bins = model_.bins();
-  alpha_cdf_.assign(bins + 1, 0.0);
-  for (int b = 0; b < bins; ++b) alpha_cdf_[b + 1] = alpha_cdf_[b] + model_.alpha_probability[b];
+  alpha_ = AliasTable(model_.alpha_probability);
+  for (double a : model_.alpha_edges) cos_edges_.push_back(std::cos(a));
+  cos_edges_.front() = 1, cos_edges_.back() = -1;
+  for (const VmfLobe& l : model_.vmf) {
+    Lobe c;
+    c.mean = l.mean, c.weight = l.weight, c.kappa = l.kappa;
+    orthonormal_basis(l.mean, c.b1, c.b2);
+    c.norm = vmf_pdf(l.kappa, 1.0);
+    c.expm1_2k = std::expm1(-2 * l.kappa);
+    lobes_.push_back(c);
+  }
   if (model_.kind == ModelKind::kSh) {
-    const int cells = 2 * model_.sh_nz * model_.sh_nz;
-    cell_cdf_.assign(std::size_t(bins) * (cells + 1), 0.0);
-    for (int b = 0; b < bins; ++b) {
-      double* cdf = &cell_cdf_[std::size_t(b) * (cells + 1)];
-      const float* table = &model_.sh_table[std::size_t(b) * cells];
-      for (int c = 0; c < cells; ++c) cdf[c + 1] = cdf[c] + double(table[c]);  // equal areas
-    }
+    // Cells have equal areas, so their masses are the table values.
+    const std::size_t cells = std::size_t(2) * model_.sh_nz * model_.sh_nz;
+    for (int b = 0; b < bins; ++b)
+      cells_.emplace_back(std::vector<double>(model_.sh_table.begin() + std::ptrdiff_t(b * cells),
+                                              model_.sh_table.begin() + std::ptrdiff_t((b + 1) * cells)));
   }
 }
 
-int ShellSampler::sample_alpha_bin(double u, double& remainder) const {
-  return sample_cdf(alpha_cdf_.data(), model_.bins(), u, remainder);
+double ShellSampler::lobe_pdf(const Lobe& l, const Vec3& w) const {
+  return l.norm * std::exp(l.kappa * (dot(l.mean, w) - 1));
 }
+
+int ShellSampler::alpha_bin_of(double cos_alpha) const {
+  // First edge below cos_alpha: bins hold cos(alpha) in (cos a1, cos a0].
+  auto it = std::lower_bound(cos_edges_.begin() + 1, cos_edges_.end() - 1, cos_alpha,
+                             [](double edge, double z) { return edge >= z; });
+  return int(it - cos_edges_.begin()) - 1;
+}
+
+double ShellSampler::direction_pdf(int bin, const Vec3& w) const {
+  if (model_.kind == ModelKind::kSh) return model_.direction_pdf(bin, w);
+  double p = 0;
+  const Lobe* l = &lobes_[std::size_t(bin) * model_.lobes];
+  for (int k = 0; k < model_.lobes; ++k) p += l[k].weight * lobe_pdf(l[k], w);
+  return p;
+}
+
+int ShellSampler::sample_alpha_bin(double u, double& remainder) const { return alpha_.sample(u, remainder); }
 
 Vec3 ShellSampler::sample_direction(int bin, double u2, double u3) const {
   if (model_.kind == ModelKind::kVmf) {
     // Pick a lobe by weight and reuse the rest of u2 for the lobe's own polar angle.
-    const VmfLobe* lobes = &model_.vmf[std::size_t(bin) * model_.lobes];
+    const Lobe* lobes = &lobes_[std::size_t(bin) * model_.lobes];
     double u = u2;
     int k = 0;
     while (k + 1 < model_.lobes && (u >= lobes[k].weight || lobes[k].weight <= 0)) u -= lobes[k++].weight;
-    double remainder = lobes[k].weight > 0 ? std::clamp(u / lobes[k].weight, 0.0, std::nextafter(1.0, 0.0)) : 0.0;
-    return sample_vmf(lobes[k], remainder, u3);
+    const Lobe& l = lobes[k];
+    double remainder = l.weight > 0 ? std::clamp(u / l.weight, 0.0, std::nextafter(1.0, 0.0)) : 0.0;
+    // The stable inversion of sample_vmf_cos with expm1(-2 kappa) cached.
+    double c = l.kappa < 1e-300 ? 2 * remainder - 1 : 1 + std::log1p((1 - remainder) * l.expm1_2k) / l.kappa;
+    c = std::clamp(c, -1.0, 1.0);
+    double s = std::sqrt(std::max(0.0, 1 - c * c)), sp, cp;
+    sincos_2pi(u3, sp, cp);
+    double x = s * cp, y = s * sp;  // (b1, b2, mean) is orthonormal: the result is unit to rounding
+    return {x * l.b1.x + y * l.b2.x + c * l.mean.x, x * l.b1.y + y * l.b2.y + c * l.mean.y,
+            x * l.b1.z + y * l.b2.z + c * l.mean.z};
   }
-  // Tabulated SH: a cell by its mass, then uniform in it (uniform in z and phi is uniform in area).
-  const int nz = model_.sh_nz, cells = 2 * nz * nz;
-  double remainder;
-  int c = sample_cdf(&cell_cdf_[std::size_t(bin) * (cells + 1)], cells, u2, remainder);
-  int row = c / (2 * nz), col = c % (2 * nz);
-  double z = -1 + (row + remainder) * 2.0 / nz;
-  double phi = (col + u3) * kPi / nz;
-  double rho = std::sqrt(std::max(0.0, 1 - z * z));
-  return {rho * std::cos(phi), rho * std::sin(phi), z};
+  // Tabulated SH: a cell by mass, then uniform in the cell: uniform in z and phi is uniform
+  // in area. What is left of u2 places z, u3 phi.
+  const int nz = model_.sh_nz, nphi = 2 * nz;
+  double in_cell;
+  int cell = cells_[bin].sample(u2, in_cell);
+  int row = cell / nphi, col = cell % nphi;
+  double z = -1 + (row + in_cell) * 2.0 / nz;
+  double rho = std::sqrt(std::max(0.0, 1 - z * z)), sp, cp;
+  sincos_2pi((col + u3) / nphi, sp, cp);
+  return {rho * cp, rho * sp, z};
 }
 
 ExitSample ShellSampler::sample(double u0, double u1, double u2, double u3) const {
   double remainder;
   int bin = sample_alpha_bin(u0, remainder);
-  double c0 = std::cos(model_.alpha_edges[bin]), c1 = std::cos(model_.alpha_edges[bin + 1]);
+  double c0 = cos_edges_[bin], c1 = cos_edges_[bin + 1];
   double cos_alpha = c0 + remainder * (c1 - c0), sin_alpha = std::sqrt(std::max(0.0, 1 - cos_alpha * cos_alpha));
-  double beta = 2 * kPi * u1, cb = std::cos(beta), sb = std::sin(beta);
+  double cb, sb;
+  sincos_2pi(u1, sb, cb);  // beta = 2 pi u1
   Vec3 local = sample_direction(bin, u2, u3);
   ExitSample s;
   s.point = {sin_alpha * cb, sin_alpha * sb, cos_alpha};
@@ -81,11 +103,8 @@ ExitSample ShellSampler::sample(double u0, double u1, double u2, double u3) cons
 }
 
 double ShellSampler::pdf(const Vec3& point, const Vec3& direction) const {
-  const int bins = model_.bins();
-  double z = std::clamp(point.z, -1.0, 1.0);
-  double alpha = std::atan2(std::sqrt(point.x * point.x + point.y * point.y), z);
-  int bin = std::clamp(int(alpha / kPi * bins), 0, bins - 1);
-  double c0 = std::cos(model_.alpha_edges[bin]), c1 = std::cos(model_.alpha_edges[bin + 1]);
+  int bin = alpha_bin_of(std::clamp(point.z, -1.0, 1.0));
+  double c0 = cos_edges_[bin], c1 = cos_edges_[bin + 1];
   double rho = std::sqrt(point.x * point.x + point.y * point.y);
   double cb = rho > 0 ? point.x / rho : 1, sb = rho > 0 ? point.y / rho : 0;
   Vec3 local = rotate_z(direction, cb, -sb);

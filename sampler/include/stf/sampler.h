@@ -11,6 +11,7 @@
 
 #include <vector>
 
+#include "stf/alias.h"
 #include "stf/model.h"
 #include "stf/vec3.h"
 
@@ -51,14 +52,26 @@ class ShellSampler {
   int sample_alpha_bin(double u, double& remainder) const;
   double alpha_bin_probability(int bin) const { return model_.alpha_probability[bin]; }
   Vec3 sample_direction(int bin, double u2, double u3) const;
-  double direction_pdf(int bin, const Vec3& w) const { return model_.direction_pdf(bin, w); }
+  double direction_pdf(int bin, const Vec3& w) const;
 
   const StfModel& model() const { return model_; }
 
  private:
+  // Per lobe, what sampling and the pdf need, computed once (as Open PGL caches them).
+  struct Lobe {
+    Vec3 mean, b1, b2;  // the lobe's frame
+    double weight, kappa;
+    double norm;        // kappa / (2 pi (1 - e^{-2 kappa})): the density at the mean
+    double expm1_2k;    // expm1(-2 kappa)
+  };
+  double lobe_pdf(const Lobe& l, const Vec3& w) const;
+  int alpha_bin_of(double cos_alpha) const;
+
   StfModel model_;
-  std::vector<double> alpha_cdf_;  // [bins + 1]
-  std::vector<double> cell_cdf_;   // sh: [bins * (cells + 1)] over the equal-area cells
+  AliasTable alpha_;               // over the alpha bins
+  std::vector<double> cos_edges_;  // [bins + 1], decreasing
+  std::vector<Lobe> lobes_;        // vmf: [bins * lobes]
+  std::vector<AliasTable> cells_;  // sh: per bin, over its equal-area cells
 };
 
 }  // namespace stf

@@ -1,0 +1,41 @@
+// Small numerical kernels of the sampler.
+#pragma once
+
+namespace stf {
+
+// sin and cos of 2 pi u for u in [0, 1], to double precision, without libm: the quadrant
+// q = round(4u) is exact in u, and on the remainder a = (4u - q) pi / 2 in [-pi/4, pi/4] the
+// Taylor series to a^17 / a^18 are below 1e-18 off.
+inline void sincos_2pi(double u, double& s, double& c) {
+  double t = 4 * u;
+  int q = int(t + 0.5);
+  double a = (t - q) * 1.5707963267948966;
+  double a2 = a * a;
+  double sp = 1.0 / 355687428096000.0;  // 1 / 17!
+  sp = sp * -a2 + 1.0 / 1307674368000.0;
+  sp = sp * -a2 + 1.0 / 6227020800.0;
+  sp = sp * -a2 + 1.0 / 39916800.0;
+  sp = sp * -a2 + 1.0 / 362880.0;
+  sp = sp * -a2 + 1.0 / 5040.0;
+  sp = sp * -a2 + 1.0 / 120.0;
+  sp = sp * -a2 + 1.0 / 6.0;
+  double sa = a - a * a2 * sp;
+  double cp = 1.0 / 6402373705728000.0;  // 1 / 18!
+  cp = cp * -a2 + 1.0 / 20922789888000.0;
+  cp = cp * -a2 + 1.0 / 87178291200.0;
+  cp = cp * -a2 + 1.0 / 479001600.0;
+  cp = cp * -a2 + 1.0 / 3628800.0;
+  cp = cp * -a2 + 1.0 / 40320.0;
+  cp = cp * -a2 + 1.0 / 720.0;
+  cp = cp * -a2 + 1.0 / 24.0;
+  cp = cp * -a2 + 0.5;
+  double ca = 1 - a2 * cp;
+  switch (q & 3) {
+    case 0: s = sa, c = ca; break;
+    case 1: s = ca, c = -sa; break;
+    case 2: s = -sa, c = -ca; break;
+    default: s = -ca, c = sa; break;
+  }
+}
+
+}  // namespace stf
