@@ -13,6 +13,7 @@
 #include <string>
 #include <thread>
 
+#include "h5io.h"
 #include "table.h"
 
 namespace fs = std::filesystem;
@@ -191,6 +192,35 @@ TEST_F(Cli, FitAndEvalRejectBadInput) {
   }
   auto names = files();
   EXPECT_EQ(std::count(names.begin(), names.end(), std::string("m.h5")), 0);
+}
+
+// stf sample's output layout (CONTRACT.md "Samples"), and --eval giving back the same pdfs.
+TEST_F(Cli, PackSampleAndEvalFollowTheContract) {
+  const std::string medium = "precompute --sigma-s 3 --sigma-a 0.3 --g 0.5 --alpha-bins 9 --grid healpix:4 --quiet ";
+  ASSERT_EQ(stf(medium + "--paths 20000 -o " + out("t.h5")).status, 0);
+  ASSERT_EQ(stf("fit " + out("t.h5") + " --model vmf:2 --quiet -o " + out("m.h5")).status, 0);
+  ASSERT_EQ(stf("pack " + out("m.h5") + " --name milk -o " + out("m.stfpack")).status, 0);
+  for (const char* model : {"m.h5", "m.stfpack"}) {
+    Result r = stf("sample " + out(model) + " --count 500 --seed 3 -o " + out("s.h5"));
+    ASSERT_EQ(r.status, 0) << r.err;
+    H5::H5File f(out("s.h5"), H5F_ACC_RDONLY);
+    EXPECT_EQ(stf::h5::dataset_shape(f, "/samples/exit_point"), (std::vector<hsize_t>{500, 3}));
+    EXPECT_EQ(stf::h5::dataset_shape(f, "/samples/exit_direction"), (std::vector<hsize_t>{500, 3}));
+    EXPECT_EQ(stf::h5::dataset_shape(f, "/samples/pdf"), (std::vector<hsize_t>{500}));
+    EXPECT_GT(stf::h5::get_double(f, "escape_probability"), 0);
+    Result e = stf("sample " + out(model) + " --eval " + out("s.h5") + " -o " + out("e.h5"));
+    ASSERT_EQ(e.status, 0) << e.err;
+    H5::H5File g(out("e.h5"), H5F_ACC_RDONLY);
+    std::vector<double> drawn = stf::h5::get_dataset(f, "/samples/pdf", {}), evaluated = stf::h5::get_dataset(g, "/samples/pdf", {});
+    // Equal but for rounding of the stored directions, which a near-delta lobe (the uncollided
+    // escape at alpha = 0, kappa ~ 1e7) amplifies by kappa: relative 1e-6.
+    for (std::size_t i = 0; i < drawn.size(); ++i) EXPECT_NEAR(evaluated[i], drawn[i], 1e-6 * drawn[i]);
+  }
+  Result bad = stf("sample " + out("t.h5") + " --count 10 -o " + out("x.h5"));
+  EXPECT_NE(bad.status, 0);
+  EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
+  Result zero = stf("sample " + out("m.h5") + " --count 0 -o " + out("x.h5"));
+  EXPECT_NE(zero.err.find("--count"), std::string::npos) << zero.err;
 }
 
 bool have_matplotlib() {
