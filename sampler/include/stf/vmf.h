@@ -3,7 +3,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <vector>
 
 #include "stf/vec3.h"
 
@@ -53,12 +52,6 @@ inline Vec3 sample_vmf(const VmfLobe& lobe, double u0, double u1) {
   double x = s * std::cos(phi), y = s * std::sin(phi);
   return normalize({x * b1.x + y * b2.x + c * lobe.mean.x, x * b1.y + y * b2.y + c * lobe.mean.y,
                     x * b1.z + y * b2.z + c * lobe.mean.z});
-}
-
-inline double mixture_pdf(const std::vector<VmfLobe>& lobes, const Vec3& w) {
-  double p = 0;
-  for (const VmfLobe& l : lobes) p += l.weight * vmf_pdf(l.kappa, dot(l.mean, w));
-  return p;
 }
 
 }  // namespace stf
