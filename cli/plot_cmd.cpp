@@ -68,7 +68,7 @@ void write_panel(H5::H5File& file, int index, const Table& t, const DirectionGri
 
 std::string describe(const Table& t, int bin, const std::string& what) {
   char title[256];
-  std::snprintf(title, sizeof title, "%s  %s  sigma_s=%g sigma_a=%g g=%g  alpha in [%.1f, %.1f) deg  %.3g paths",
+  std::snprintf(title, sizeof title, "%s  %s  sigma_s=%g sigma_a=%g g=%g  alpha [%.1f, %.1f) deg  %.3g paths",
                 what.c_str(), t.grid.c_str(), t.medium.sigma_s, t.medium.sigma_a, t.medium.g,
                 t.alpha_edges[bin] * 180 / kPi, t.alpha_edges[bin + 1] * 180 / kPi, double(t.paths));
   return title;

@@ -51,7 +51,7 @@ def draw(panels_path, out_path):
             title = g.attrs["title"]
             title = title if isinstance(title, str) else title.decode()
             for ax in axes[row]:
-                ax.set_title(title + "\n" + ax.get_title(), fontsize=9)
+                ax.set_title(title + "\n" + ax.get_title(), fontsize=8)
             for ax in axes[row]:
                 ax.set_xlabel("phi [deg]")
                 ax.set_ylabel("theta [deg]")
