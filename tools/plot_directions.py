@@ -1,6 +1,7 @@
 #!/usr/bin/python3
 """Draw the thesis's theta-phi direction plots (its Fig. 4.2-4.5) from the panel data that
-`stf plot` prepares; one row per table, two columns:
+`stf plot` prepares. Raw table against fitted model (`stf plot --model`): the two side by
+side on one colour scale. Otherwise one row per table, two columns:
 
   left:  the thesis's method: densities at the cell centres, linearly interpolated over a
          Delaunay triangulation in (phi, theta). Wherever no cell centre lies near (phi = +-pi
@@ -21,9 +22,29 @@ import matplotlib.tri as mtri  # noqa: E402
 import numpy as np  # noqa: E402
 
 
+def draw_side_by_side(f, names, out_path):
+    """Raw table and fitted model, each pixel coloured by its cell, on one colour scale."""
+    fig, axes = plt.subplots(1, len(names), figsize=(6.5 * len(names), 4.2), squeeze=False,
+                             constrained_layout=True)
+    vmax = max(max(f[n]["raster"][:].max() for n in names), 1e-300)
+    for ax, name in zip(axes[0], names):
+        g = f[name]
+        im = ax.imshow(g["raster"][:], extent=[-180, 180, 180, 0], aspect="auto", cmap="viridis", vmin=0,
+                       vmax=vmax, interpolation="nearest")
+        title = g.attrs["title"]
+        ax.set_title(title if isinstance(title, str) else title.decode(), fontsize=8)
+        ax.set_xlabel("phi [deg]")
+        ax.set_ylabel("theta [deg]")
+    fig.colorbar(im, ax=axes[0].tolist(), label="p(w' | alpha)  [1/sr]")
+    fig.savefig(out_path, dpi=100, format="png")
+
+
 def draw(panels_path, out_path):
     with h5py.File(panels_path, "r") as f:
         names = sorted(f.keys(), key=lambda n: int(n[len("panel"):]))
+        if f.attrs.get("side_by_side", 0):
+            draw_side_by_side(f, names, out_path)
+            return
         fig, axes = plt.subplots(len(names), 2, figsize=(13, 4.2 * len(names)), squeeze=False,
                                  constrained_layout=True)
         for row, name in enumerate(names):

@@ -36,4 +36,4 @@ build/stf plot out/default_csc.h5 out/default_healpix.h5 --alpha 30 -o out/defau
 build/stf fit out/default_healpix.h5 --model vmf:4 --report out/default_vmf4.json -o out/default_vmf4.h5
 build/stf plot out/default_healpix.h5 --model out/default_vmf4.h5 --alpha 30 -o out/default_vmf4_alpha30.png
 echo "quickstart: in out/: default_alpha30.png (CSC above, HEALPix below)," \
-     "default_vmf4_alpha30.png (table above, fitted vmf:4 below)" >&2
+     "default_vmf4_alpha30.png (table and fitted vmf:4 side by side)" >&2
