@@ -126,7 +126,7 @@ void add_plot_command(CLI::App& app) {
   cmd->add_option("--alpha", o->alpha_deg, "Exit-point angle alpha in degrees")->required();
   cmd->add_option("-o,--output", o->output, "Output image (PNG)")->required();
   cmd->add_option("--width", o->width, "Raster width in pixels")->capture_default_str();
-  cmd->add_option("--model", o->model, "A fitted model of the (first) table: drawn below it, integrated over its cells")
+  cmd->add_option("--model", o->model, "A fitted model of the (first) table: drawn beside it, integrated over its cells")
       ->check(CLI::ExistingFile);
   cmd->callback([o] {
     try {
