@@ -72,6 +72,7 @@ void add_precompute_command(CLI::App& app);
 void add_plot_command(CLI::App& app);
 void add_pack_command(CLI::App& app);
 void add_sample_command(CLI::App& app);
+void add_build_command(CLI::App& app);
 void add_fit_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
 

@@ -1,0 +1,20 @@
+// Carrying out a plan: compute what is missing into the cache, then pack what the scene needs.
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include "plan.h"
+
+namespace stf::scene {
+
+// Called before each entry is computed: (index among the entries to compute, their count, entry).
+using BuildProgress = std::function<void(int, int, const PlanEntry&)>;
+
+// Computes the "compute" entries (precompute, then fit) into the cache, atomically per file,
+// and writes the pack: for every medium in scene order, its entries by increasing tau, named
+// after the medium. Returns the number of entries computed.
+int build(const Scene& scene, const Plan& plan, const std::string& pack_path, int threads,
+          const BuildProgress& progress = {});
+
+}  // namespace stf::scene

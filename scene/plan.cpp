@@ -1,0 +1,117 @@
+#include "plan.h"
+
+#include <sys/stat.h>
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <sstream>
+#include <tuple>
+
+namespace stf::scene {
+
+namespace {
+
+std::string fmt(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.12g", v);
+  return buf;
+}
+
+std::string cache_key(const Settings& s, double tau, double albedo, double g) {
+  std::string text = "stf " STF_VERSION ";tau=" + fmt(tau) + ";albedo=" + fmt(albedo) + ";g=" + fmt(g) +
+                     ";paths=" + std::to_string(s.paths) + ";grid=" + s.grid + ";bins=" + std::to_string(s.alpha_bins) +
+                     ";model=" + s.model + ";seed=" + std::to_string(s.seed);
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  for (unsigned char c : text) h = (h ^ c) * 0x100000001b3ull;
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+  return buf;
+}
+
+bool exists(const std::string& path) {
+  struct stat st;
+  return ::stat(path.c_str(), &st) == 0;
+}
+
+}  // namespace
+
+std::string table_path(const Plan& plan, const PlanEntry& e) { return plan.cache_dir + "/" + e.key + ".table.h5"; }
+std::string model_path(const Plan& plan, const PlanEntry& e) { return plan.cache_dir + "/" + e.key + ".model.h5"; }
+
+Plan make_plan(const Scene& scene, const std::string& cache_dir) {
+  Plan plan;
+  plan.settings = scene.settings;
+  plan.cache_dir = cache_dir;
+  const Settings& s = scene.settings;
+  std::map<std::tuple<std::string, std::string, std::string>, std::size_t> shared;
+  for (const Medium& m : scene.media) {
+    const double sigma_t = m.sigma_s + m.sigma_a, albedo = m.sigma_s / sigma_t;
+    const double tau_min = sigma_t * m.radius_min, tau_max = sigma_t * m.radius_max;
+    if (tau_max < s.tau_skip) {
+      plan.entries.push_back({tau_max, albedo, m.g, {m.name}, "skip",
+                              "largest optical radius " + fmt(tau_max) + " is below tau_skip " + fmt(s.tau_skip) +
+                                  ": the renderer tracks this medium directly",
+                              ""});
+      continue;
+    }
+    // The family member at or below tau_min (but not below tau_skip), then up to tau_max.
+    int k0 = std::max(0, int(std::floor(std::log(tau_min / s.tau_skip) / std::log(s.tau_ratio) + 1e-9)));
+    for (int k = k0;; ++k) {
+      const double tau = s.tau_skip * std::pow(s.tau_ratio, k);
+      if (tau > tau_max * (1 + 1e-12)) break;
+      auto id = std::make_tuple(fmt(tau), fmt(albedo), fmt(m.g));
+      if (auto it = shared.find(id); it != shared.end()) {
+        plan.entries[it->second].media.push_back(m.name);
+        continue;
+      }
+      PlanEntry e{tau, albedo, m.g, {m.name}, "compute", "", cache_key(s, tau, albedo, m.g)};
+      if (exists(model_path(plan, e))) {
+        e.action = "cached";
+        e.reason = "a table and fit with the same inputs and settings are in the cache";
+      } else {
+        e.reason = "covers free radii from " + fmt(tau / sigma_t) + " in " + m.name + " (tau " + fmt(tau) + ")";
+      }
+      shared[id] = plan.entries.size();
+      plan.entries.push_back(e);
+    }
+  }
+  // A shared entry says so.
+  for (PlanEntry& e : plan.entries)
+    if (e.media.size() > 1 && e.action == "compute") e.reason += "; shared by " + std::to_string(e.media.size()) + " media";
+  return plan;
+}
+
+std::string plan_json(const Plan& plan) {
+  std::ostringstream s;
+  s << "{\n  \"settings\": {\"paths\": " << plan.settings.paths << ", \"grid\": \"" << plan.settings.grid
+    << "\", \"alpha_bins\": " << plan.settings.alpha_bins << ", \"model\": \"" << plan.settings.model
+    << "\", \"tau_skip\": " << fmt(plan.settings.tau_skip) << ", \"tau_ratio\": " << fmt(plan.settings.tau_ratio)
+    << "},\n  \"entries\": [\n";
+  for (std::size_t i = 0; i < plan.entries.size(); ++i) {
+    const PlanEntry& e = plan.entries[i];
+    s << "    {\"tau\": " << fmt(e.tau) << ", \"albedo\": " << fmt(e.albedo) << ", \"g\": " << fmt(e.g)
+      << ", \"action\": \"" << e.action << "\", \"reason\": \"" << e.reason << "\", \"media\": [";
+    for (std::size_t j = 0; j < e.media.size(); ++j) s << (j ? ", " : "") << "\"" << e.media[j] << "\"";
+    s << "]" << (e.key.empty() ? "" : ", \"key\": \"" + e.key + "\"") << "}" << (i + 1 < plan.entries.size() ? ",\n" : "\n");
+  }
+  s << "  ]\n}\n";
+  return s.str();
+}
+
+std::string plan_table(const Plan& plan) {
+  std::ostringstream s;
+  char line[512];
+  std::snprintf(line, sizeof line, "%-9s %-10s %-9s %-9s %-24s %s\n", "action", "tau", "albedo", "g", "media", "reason");
+  s << line;
+  for (const PlanEntry& e : plan.entries) {
+    std::string media;
+    for (const std::string& m : e.media) media += (media.empty() ? "" : ",") + m;
+    std::snprintf(line, sizeof line, "%-9s %-10.4g %-9.4g %-9.4g %-24s %s\n", e.action.c_str(), e.tau, e.albedo, e.g,
+                  media.c_str(), e.reason.c_str());
+    s << line;
+  }
+  return s.str();
+}
+
+}  // namespace stf::scene

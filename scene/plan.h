@@ -1,0 +1,42 @@
+// Planning a scene: which tables to compute, share, take from the cache or skip, and why.
+//
+// Each medium becomes (albedo, g) and a range of optical radii tau = sigma_t * r over the
+// radii a renderer will use. The range is covered by a family of tau values shared by all
+// media: tau_skip * tau_ratio^k (k = 0, 1, ...), the largest at or below the smallest tau
+// and every one up to the largest, so that at any free radius the lookup (stf/lookup.h) finds
+// a sphere between 1 / tau_ratio and 1 times the one that fits. Media with equal (tau,
+// albedo, g) share an entry (media differing only by scale); a medium whose largest tau is
+// below tau_skip gets none (stepping through shells does not pay off: the renderer tracks it
+// directly). Entries are cached under a key of every input and setting.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "scene.h"
+
+namespace stf::scene {
+
+struct PlanEntry {
+  double tau = 0, albedo = 0, g = 0;
+  std::vector<std::string> media;
+  std::string action;  // "compute", "cached" or "skip"
+  std::string reason;
+  std::string key;     // cache key; empty for skipped media
+};
+
+struct Plan {
+  Settings settings;
+  std::string cache_dir;
+  std::vector<PlanEntry> entries;
+};
+
+Plan make_plan(const Scene& scene, const std::string& cache_dir);
+std::string plan_json(const Plan& plan);
+std::string plan_table(const Plan& plan);
+
+// Cache files of an entry.
+std::string table_path(const Plan& plan, const PlanEntry& e);
+std::string model_path(const Plan& plan, const PlanEntry& e);
+
+}  // namespace stf::scene

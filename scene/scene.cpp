@@ -1,0 +1,170 @@
+#include "scene.h"
+
+#include <toml.hpp>
+
+#include <cmath>
+#include <set>
+
+#include "fit_table.h"
+#include "grid.h"
+
+namespace stf::scene {
+
+namespace {
+
+// "file:line: what" for a value of the scene.
+[[noreturn]] void error_at(const toml::value& v, const std::string& what) {
+  const toml::source_location loc = v.location();
+  throw SceneError(loc.file_name() + ":" + std::to_string(loc.line()) + ": " + what);
+}
+
+void check_keys(const toml::value& table, const std::string& where, const std::set<std::string>& allowed) {
+  for (const auto& [key, value] : table.as_table()) {
+    if (allowed.count(key)) continue;
+    std::string list;
+    for (const std::string& a : allowed) list += (list.empty() ? "" : ", ") + a;
+    error_at(value, where + key + ": unknown key (allowed: " + list + ")");
+  }
+}
+
+const toml::value& require(const toml::value& table, const std::string& key, const std::string& where) {
+  if (!table.contains(key)) error_at(table, where.substr(0, where.size() - 1) + ": missing key '" + key + "'");
+  return table.at(key);
+}
+
+// A number given as integer or float ("1e6" as a string is accepted too, as on the command line).
+double number(const toml::value& v, const std::string& name) {
+  if (v.is_floating()) return v.as_floating();
+  if (v.is_integer()) return double(v.as_integer());
+  if (v.is_string()) {
+    try {
+      std::size_t used = 0;
+      double d = std::stod(v.as_string().str, &used);
+      if (used == v.as_string().str.size()) return d;
+    } catch (const std::exception&) {
+    }
+  }
+  error_at(v, name + ": expected a number");
+}
+
+std::string text(const toml::value& v, const std::string& name) {
+  if (!v.is_string()) error_at(v, name + ": expected a string");
+  return v.as_string().str;
+}
+
+void expect(bool ok, const toml::value& v, const std::string& message) {
+  if (!ok) error_at(v, message);
+}
+
+Settings read_settings(const toml::value& t) {
+  Settings s;
+  check_keys(t, "settings.", {"paths", "grid", "alpha_bins", "model", "seed", "tau_skip", "tau_ratio"});
+  if (t.contains("paths")) {
+    double p = number(t.at("paths"), "settings.paths");
+    expect(p >= 1 && p <= 1e12 && p == std::floor(p), t.at("paths"), "settings.paths: must be a whole number in 1..1e12");
+    s.paths = std::int64_t(p);
+  }
+  if (t.contains("grid")) {
+    s.grid = text(t.at("grid"), "settings.grid");
+    try {
+      make_grid(s.grid);
+    } catch (const std::invalid_argument& e) {
+      error_at(t.at("grid"), std::string("settings.grid: ") + e.what());
+    }
+  }
+  if (t.contains("alpha_bins")) {
+    double b = number(t.at("alpha_bins"), "settings.alpha_bins");
+    expect(b >= 1 && b <= 100000 && b == std::floor(b), t.at("alpha_bins"), "settings.alpha_bins: must be in 1..100000");
+    s.alpha_bins = int(b);
+  }
+  if (t.contains("model")) {
+    s.model = text(t.at("model"), "settings.model");
+    try {
+      fit::parse_model_spec(s.model);
+    } catch (const std::invalid_argument& e) {
+      error_at(t.at("model"), std::string("settings.model: ") + e.what());
+    }
+  }
+  if (t.contains("seed")) s.seed = std::int64_t(number(t.at("seed"), "settings.seed"));
+  if (t.contains("tau_skip")) {
+    s.tau_skip = number(t.at("tau_skip"), "settings.tau_skip");
+    expect(s.tau_skip > 0 && std::isfinite(s.tau_skip), t.at("tau_skip"), "settings.tau_skip: must be > 0");
+  }
+  if (t.contains("tau_ratio")) {
+    s.tau_ratio = number(t.at("tau_ratio"), "settings.tau_ratio");
+    expect(s.tau_ratio > 1.01 && s.tau_ratio <= 100, t.at("tau_ratio"), "settings.tau_ratio: must be in (1.01, 100]");
+  }
+  return s;
+}
+
+Medium read_medium(const toml::value& t, std::size_t index) {
+  const std::string where = "media[" + std::to_string(index) + "].";
+  expect(t.is_table(), t, where.substr(0, where.size() - 1) + ": expected a table");
+  check_keys(t, where, {"name", "sigma_s", "sigma_a", "g", "radius_min", "radius_max", "size"});
+  Medium m;
+  m.line = int(t.location().line());
+  m.name = text(require(t, "name", where), where + "name");
+  expect(!m.name.empty(), t.at("name"), where + "name: must not be empty");
+  m.sigma_s = number(require(t, "sigma_s", where), where + "sigma_s");
+  expect(m.sigma_s >= 0 && std::isfinite(m.sigma_s), t.at("sigma_s"), where + "sigma_s: must be a finite number >= 0");
+  m.sigma_a = number(require(t, "sigma_a", where), where + "sigma_a");
+  expect(m.sigma_a >= 0 && std::isfinite(m.sigma_a), t.at("sigma_a"), where + "sigma_a: must be a finite number >= 0");
+  expect(m.sigma_s + m.sigma_a > 0, t, where + "sigma_s, sigma_a: must not both be 0");
+  m.g = number(require(t, "g", where), where + "g");
+  expect(m.g > -1 && m.g < 1, t.at("g"), where + "g: must be in (-1, 1)");
+  if (t.contains("size")) {
+    expect(!t.contains("radius_min") && !t.contains("radius_max"), t.at("size"),
+           where + "size: give either size or radius_min and radius_max");
+    double size = number(t.at("size"), where + "size");
+    expect(size > 0 && std::isfinite(size), t.at("size"), where + "size: must be > 0");
+    m.radius_max = size / 2;
+    m.radius_min = m.radius_max / 64;
+  } else {
+    m.radius_min = number(require(t, "radius_min", where), where + "radius_min");
+    m.radius_max = number(require(t, "radius_max", where), where + "radius_max");
+    expect(m.radius_min > 0 && m.radius_min <= m.radius_max && std::isfinite(m.radius_max), t.at("radius_max"),
+           where + "radius_min, radius_max: need 0 < radius_min <= radius_max");
+  }
+  return m;
+}
+
+}  // namespace
+
+Scene read_scene(const std::string& path) {
+  toml::value root;
+  try {
+    root = toml::parse(path);
+  } catch (const toml::syntax_error& e) {
+    // toml11's report spans lines: the problem first, then " --> file" and " N | source".
+    std::string what = e.what(), first = what.substr(0, what.find('\n')), line = "1";
+    std::size_t bar = what.find(" | ");
+    if (bar != std::string::npos) {
+      std::size_t start = what.rfind('\n', bar);
+      std::string number = what.substr(start + 1, bar - start - 1);
+      number.erase(0, number.find_first_not_of(' '));
+      if (!number.empty() && number.find_first_not_of("0123456789") == std::string::npos) line = number;
+    }
+    throw SceneError(path + ":" + line + ": " + first);
+  } catch (const std::runtime_error& e) {
+    throw SceneError(path + ": " + e.what());
+  }
+  Scene scene;
+  scene.path = path;
+  check_keys(root, "", {"settings", "media"});
+  if (root.contains("settings")) {
+    expect(root.at("settings").is_table(), root.at("settings"), "settings: expected a table");
+    scene.settings = read_settings(root.at("settings"));
+  }
+  if (!root.contains("media") || !root.at("media").is_array() || root.at("media").as_array().empty())
+    throw SceneError(path + ":1: media: the scene needs at least one [[media]] table");
+  std::set<std::string> names;
+  const auto& media = root.at("media").as_array();
+  for (std::size_t i = 0; i < media.size(); ++i) {
+    Medium m = read_medium(media[i], i);
+    if (!names.insert(m.name).second) error_at(media[i].at("name"), "media[" + std::to_string(i) + "].name: '" + m.name + "' is used twice");
+    scene.media.push_back(m);
+  }
+  return scene;
+}
+
+}  // namespace stf::scene

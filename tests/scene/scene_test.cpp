@@ -1,0 +1,158 @@
+// Scene files, planning, the cache, and the render-time lookup.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "build.h"
+#include "plan.h"
+#include "scene.h"
+#include "stf/lookup.h"
+
+namespace fs = std::filesystem;
+
+namespace stf::scene {
+namespace {
+
+class SceneTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::path(::testing::TempDir()) / ("stf_scene_" + std::to_string(::getpid()) + "_" +
+                                            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string write(const std::string& name, const std::string& text) {
+    std::ofstream((dir_ / name).string()) << text;
+    return (dir_ / name).string();
+  }
+  fs::path dir_;
+};
+
+const char* kTiny = R"([settings]
+paths = 3000
+grid = "healpix:2"
+alpha_bins = 6
+model = "vmf:1"
+
+[[media]]
+name = "a"
+sigma_s = 10.0
+sigma_a = 1.0
+g = 0.5
+radius_min = 0.2
+radius_max = 1.0
+
+[[media]]
+name = "a_twice_as_dense"
+sigma_s = 20.0
+sigma_a = 2.0
+g = 0.5
+radius_min = 0.1
+radius_max = 0.5
+
+[[media]]
+name = "thin"
+sigma_s = 0.5
+sigma_a = 0.0
+g = 0.0
+size = 1.0
+)";
+
+TEST_F(SceneTest, BadScenesNameFileLineAndKey) {
+  struct Case {
+    std::string text, expect_key;
+    int line;
+  };
+  const Case cases[] = {
+      {"[[media]]\nname = \"m\"\nsigma_s = 1.0\nsigma_a = 0.0\ng = 0.2\nsize = 1.0\ncolour = \"red\"\n", "colour", 7},
+      {"[[media]]\nname = \"m\"\nsigma_s = 1.0\ng = 0.2\nsize = 1.0\n", "sigma_a", 1},
+      {"[[media]]\nname = \"m\"\nsigma_s = 1.0\nsigma_a = 0.0\ng = 1.5\nsize = 1.0\n", "g", 5},
+      {"[[media]]\nname = \"m\"\nsigma_s = -1.0\nsigma_a = 0.0\ng = 0.1\nsize = 1.0\n", "sigma_s", 3},
+      {"[settings]\npaths = 0\n[[media]]\nname = \"m\"\nsigma_s = 1.0\nsigma_a = 0.0\ng = 0.1\nsize = 1.0\n", "paths", 2},
+      {"[settings]\ngrid = \"hex:3\"\n[[media]]\nname = \"m\"\nsigma_s = 1.0\nsigma_a = 0.0\ng = 0.1\nsize = 1.0\n", "grid", 2},
+      {"[[media]]\nname = \"m\"\nsigma_s = 1.0\nsigma_a = 0.0\ng = 0.1\nradius_min = 2.0\nradius_max = 1.0\n", "radius", 7},
+  };
+  for (const Case& c : cases) {
+    std::string path = write("bad.toml", c.text);
+    try {
+      read_scene(path);
+      ADD_FAILURE() << "accepted:\n" << c.text;
+    } catch (const SceneError& e) {
+      std::string what = e.what();
+      EXPECT_NE(what.find("bad.toml:" + std::to_string(c.line)), std::string::npos) << what;
+      EXPECT_NE(what.find(c.expect_key), std::string::npos) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    }
+  }
+  try {
+    read_scene(write("syntax.toml", "[[media]]\nname = \"m\"\nsigma_s =\n"));
+    ADD_FAILURE() << "accepted a syntax error";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("syntax.toml:3:"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(read_scene(write("empty.toml", "[settings]\npaths = 10\n")), SceneError);
+}
+
+TEST_F(SceneTest, PlanSharesScaledMediaAndSkipsThinOnes) {
+  Scene scene = read_scene(write("s.toml", kTiny));
+  Plan plan = make_plan(scene, (dir_ / "cache").string());
+  int computed = 0;
+  for (const PlanEntry& e : plan.entries) {
+    if (e.media == std::vector<std::string>{"thin"}) {
+      EXPECT_EQ(e.action, "skip");
+      EXPECT_NE(e.reason.find("tau_skip"), std::string::npos);
+      continue;
+    }
+    // a (tau 2.2 .. 11) and its denser twin (2.2 .. 11) share tau 2, 4, 8.
+    EXPECT_EQ(e.media, (std::vector<std::string>{"a", "a_twice_as_dense"}));
+    EXPECT_EQ(e.action, "compute");
+    ++computed;
+  }
+  EXPECT_EQ(computed, 3);
+  std::string json = plan_json(plan);
+  for (const char* key : {"\"entries\"", "\"tau\"", "\"albedo\"", "\"g\"", "\"action\"", "\"reason\"", "\"media\""})
+    EXPECT_NE(json.find(key), std::string::npos) << key;
+}
+
+TEST_F(SceneTest, SecondBuildComputesNothingAndEditsRecomputeOnlyWhatChanged) {
+  const std::string cache = (dir_ / "cache").string(), pack = (dir_ / "s.stfpack").string();
+  std::string path = write("s.toml", kTiny);
+  Scene scene = read_scene(path);
+  EXPECT_EQ(build(scene, make_plan(scene, cache), pack, 2), 3);
+  EXPECT_EQ(build(scene, make_plan(scene, cache), pack, 2), 0);
+  // Change one medium's g: its entries are new, the others stay cached.
+  std::string edited = kTiny;
+  edited.replace(edited.find("g = 0.5\nradius_min = 0.1"), 7, "g = 0.6");
+  scene = read_scene(write("s.toml", edited));
+  Plan plan = make_plan(scene, cache);
+  int cached = 0;
+  for (const PlanEntry& e : plan.entries) cached += e.action == "cached";
+  EXPECT_EQ(cached, 3);
+  EXPECT_EQ(build(scene, plan, pack, 2), 3);
+}
+
+TEST_F(SceneTest, LookupPicksTheLargestSphereThatFits) {
+  const std::string cache = (dir_ / "cache").string(), pack_path = (dir_ / "s.stfpack").string();
+  Scene scene = read_scene(write("s.toml", kTiny));
+  build(scene, make_plan(scene, cache), pack_path, 2);
+  std::vector<PackEntry> pack;
+  std::string error;
+  ASSERT_TRUE(read_pack_file(pack_path, pack, error)) << error;
+  double radius = 0;
+  // a: sigma_t = 11. Free radius 0.5 fits tau 5.5: the tau 4 sphere, radius 4 / 11.
+  const PackEntry* e = find_entry(pack, "a", 11, 0.5, radius);
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(e->model.tau, 4);
+  EXPECT_DOUBLE_EQ(radius, 4.0 / 11);
+  EXPECT_EQ(find_entry(pack, "a", 11, 100, radius)->model.tau, 8);
+  EXPECT_EQ(find_entry(pack, "a", 11, 0.1, radius), nullptr);  // tau 1.1: too close to the boundary
+  EXPECT_EQ(radius, 0);
+  EXPECT_EQ(find_entry(pack, "thin", 0.5, 1, radius), nullptr);
+  EXPECT_EQ(find_entry(pack, "nobody", 1, 1, radius), nullptr);
+}
+
+}  // namespace
+}  // namespace stf::scene
