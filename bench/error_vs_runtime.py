@@ -18,19 +18,18 @@ Needs build/stf and Debian's python3-matplotlib.
 """
 import argparse
 import json
-import math
 import os
-import subprocess
 import sys
 
-import h5py
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-STF = os.path.join(ROOT, "build", "stf")
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+from stf_runs import Stf, power_law  # noqa: E402
+
 MEDIA = [
     {"name": "dense forward (sigma_s 10, g 0.5)", "sigma_s": 10, "sigma_a": 0, "g": 0.5},
     {"name": "absorbing backward (sigma_s 2, sigma_a 0.5, g -0.3)", "sigma_s": 2, "sigma_a": 0.5, "g": -0.3},
@@ -40,33 +39,6 @@ MODELS = [("vmf:1", ["--model", "vmf:1"]), ("vmf:4", ["--model", "vmf:4"]), ("sh
           ("sh:16", ["--model", "sh:16"]), ("sh:16 cheb8", ["--model", "sh:16", "--alpha-degree", "8"])]
 
 
-def run(*args):
-    subprocess.run([STF, *map(str, args)], check=True, stdout=subprocess.DEVNULL)
-
-
-def precompute(medium, paths, seed, path, grid, bins):
-    run("precompute", "--sigma-s", medium["sigma_s"], "--sigma-a", medium["sigma_a"], "--g", medium["g"],
-        "--paths", paths, "--seed", seed, "--grid", grid, "--alpha-bins", bins, "--quiet", "-o", path)
-    with h5py.File(path, "r") as f:
-        return float(f.attrs["runtime_s"])
-
-
-def evaluate(candidate, reference, out):
-    run("eval", candidate, "--reference", reference, "--json", out)
-    with open(out) as f:
-        return json.load(f)
-
-
-def power_law(points):
-    """Least squares of log TV = log a + b log t over the raw tables."""
-    xs = [math.log(t) for t, _ in points]
-    ys = [math.log(e) for _, e in points]
-    n = len(xs)
-    mx, my = sum(xs) / n, sum(ys) / n
-    b = sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
-    return math.exp(my - b * mx), b
-
-
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "error_vs_runtime"))
@@ -74,6 +46,7 @@ def main():
     ap.add_argument("--quick", action="store_true", help="1e4..1e6 paths, 1e7 reference, 18 alpha bins")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
+    stf = Stf()
     grid, bins = "healpix:16", 90
     path_counts = [1e4, 1e5, 1e6, 1e7]
     if a.quick:
@@ -84,21 +57,19 @@ def main():
         tag = f"m{mi}"
         ref = os.path.join(a.out, f"{tag}_reference.h5")
         print(f"{medium['name']}: reference {a.reference_paths:.0e} paths", file=sys.stderr)
-        ref_seconds = precompute(medium, int(a.reference_paths), 999, ref, grid, bins)
+        ref_seconds = stf.precompute(medium, int(a.reference_paths), 999, ref, grid, bins)
         entry = {"medium": medium, "reference_seconds": ref_seconds, "raw": [], "models": []}
         for paths in path_counts:
             table = os.path.join(a.out, f"{tag}_{int(paths)}.h5")
-            seconds = precompute(medium, int(paths), 1, table, grid, bins)
-            e = evaluate(table, ref, os.path.join(a.out, "eval.json"))
+            seconds = stf.precompute(medium, int(paths), 1, table, grid, bins)
+            e = stf.evaluate(table, ref, os.path.join(a.out, "eval.json"))
             entry["raw"].append({"paths": paths, "seconds": seconds, "tv": e["tv_distance"],
                                  "bytes": e["table_bytes"]})
             print(f"  {paths:.0e} paths: raw tv {e['tv_distance']:.4f} ({seconds:.2f} s)", file=sys.stderr)
             for spec, fit_args in MODELS:
                 model = os.path.join(a.out, f"{tag}_{int(paths)}_{spec.replace(':', '').replace(' ', '_')}.h5")
-                run("fit", table, *fit_args, "--quiet", "-o", model)
-                with h5py.File(model, "r") as f:
-                    fit_seconds = float(f.attrs["fit_time_s"])
-                m = evaluate(model, ref, os.path.join(a.out, "eval.json"))
+                fit_seconds, _ = stf.fit(table, fit_args, model)
+                m = stf.evaluate(model, ref, os.path.join(a.out, "eval.json"))
                 entry["models"].append({"model": spec, "paths": paths, "precompute_seconds": seconds,
                                         "fit_seconds": fit_seconds, "tv": m["tv_distance"],
                                         "bytes": m["model_bytes"], "table_bytes": m["table_bytes"]})

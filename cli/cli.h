@@ -73,6 +73,7 @@ void add_plot_command(CLI::App& app);
 void add_pack_command(CLI::App& app);
 void add_sample_command(CLI::App& app);
 void add_build_command(CLI::App& app);
+void add_report_command(CLI::App& app);
 void add_fit_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
 

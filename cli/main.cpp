@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
   stf::cli::add_pack_command(app);
   stf::cli::add_sample_command(app);
   stf::cli::add_build_command(app);
+  stf::cli::add_report_command(app);
   stf::cli::add_plot_command(app);
   try {
     app.parse(argc, argv);

@@ -1,6 +1,8 @@
 #include "precompute.h"
 
 #include <chrono>
+#include <condition_variable>
+#include <mutex>
 #include <cmath>
 #include <memory>
 #include <stdexcept>
@@ -69,7 +71,9 @@ std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& 
   threads = int(std::min<std::int64_t>(threads, chunks));
 
   std::atomic<std::int64_t> next_chunk{0}, paths_done{0};
-  std::atomic<int> running{threads};
+  int running = threads;  // guarded by `mutex`
+  std::mutex mutex;
+  std::condition_variable finished;
   std::atomic<bool> stopped{false};
   std::vector<Tally> tallies(threads, Tally(s.alpha_bins, grid->cell_count()));
   auto worker = [&](int t) {
@@ -82,19 +86,19 @@ std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& 
         break;
       }
     }
+    std::lock_guard<std::mutex> lock(mutex);
     --running;
+    finished.notify_one();
   };
   std::vector<std::thread> pool;
   for (int t = 0; t < threads; ++t) pool.emplace_back(worker, t);
   auto seconds = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
-  for (double last_report = 0; running.load() > 0;) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    if (progress && seconds() - last_report >= 0.1) {
-      last_report = seconds();
-      progress(paths_done.load(), s.paths, last_report);
-    }
+  // Report progress every 100 ms until the workers are done; wake at once when they are.
+  for (std::unique_lock<std::mutex> lock(mutex); running > 0;) {
+    if (finished.wait_for(lock, std::chrono::milliseconds(100), [&] { return running == 0; })) break;
+    if (progress) progress(paths_done.load(), s.paths, seconds());
   }
   for (auto& th : pool) th.join();
   if (stopped || (cancel && cancel->load())) return std::nullopt;

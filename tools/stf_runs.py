@@ -1,0 +1,46 @@
+"""Running the stf CLI from Python: the pieces bench/ and `stf report` share."""
+import json
+import math
+import os
+import subprocess
+
+import h5py
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+class Stf:
+    def __init__(self, binary=None):
+        self.binary = binary or os.path.join(ROOT, "build", "stf")
+
+    def run(self, *args):
+        subprocess.run([self.binary, *map(str, args)], check=True, stdout=subprocess.DEVNULL)
+
+    def precompute(self, medium, paths, seed, path, grid, bins, threads=0):
+        """Walks a table; returns its wall-clock seconds (the runtime_s attribute)."""
+        self.run("precompute", "--sigma-s", medium["sigma_s"], "--sigma-a", medium["sigma_a"], "--g", medium["g"],
+                 "--paths", int(paths), "--seed", seed, "--grid", grid, "--alpha-bins", bins, "--threads", threads,
+                 "--quiet", "-o", path)
+        with h5py.File(path, "r") as f:
+            return float(f.attrs["runtime_s"])
+
+    def fit(self, table, fit_args, path):
+        """Fits a model; returns (fit seconds, model bytes)."""
+        self.run("fit", table, *fit_args, "--quiet", "-o", path)
+        with h5py.File(path, "r") as f:
+            return float(f.attrs["fit_time_s"]), int(f.attrs["model_bytes"])
+
+    def evaluate(self, candidate, reference, out):
+        self.run("eval", candidate, "--reference", reference, "--json", out)
+        with open(out) as f:
+            return json.load(f)
+
+
+def power_law(points):
+    """Least squares of log y = log a + b log x; returns (a, b)."""
+    xs = [math.log(x) for x, _ in points]
+    ys = [math.log(y) for _, y in points]
+    n = len(xs)
+    mx, my = sum(xs) / n, sum(ys) / n
+    b = sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
+    return math.exp(my - b * mx), b
