@@ -1,55 +1,59 @@
 // A path crossing a big sphere of homogeneous medium in shell-transport strides.
 //
-// It starts at the centre heading +z. While a whole precomputed sphere fits between the path
-// and the boundary, it jumps to that sphere's exit point and direction, sampled from the
-// model; each jump multiplies the throughput by the escape probability. Near the boundary a
-// renderer would continue with ordinary volume path tracing.
+// It starts at the centre heading +z. At each point the free radius is the distance to the
+// medium's boundary; stf::find_entry picks the largest precomputed sphere that fits there,
+// and the path jumps to that sphere's exit point and direction, sampled from its model, its
+// throughput multiplied by the escape probability. When no sphere fits (too close to the
+// boundary) a renderer continues with ordinary volume path tracing; here the walk stops.
 //
-//   walk_medium PACK [SIGMA_T] [BIG_RADIUS] [PATHS]
+//   walk_medium PACK [MEDIUM] [SIGMA_T] [BIG_RADIUS] [PATHS]
+#include <stf/lookup.h>
 #include <stf/pack.h>
 #include <stf/sampler.h>
 
-#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <map>
 #include <random>
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: walk_medium PACK [SIGMA_T] [BIG_RADIUS] [PATHS]\n");
+    std::fprintf(stderr, "usage: walk_medium PACK [MEDIUM] [SIGMA_T] [BIG_RADIUS] [PATHS]\n");
     return 2;
   }
-  std::vector<stf::PackEntry> entries;
+  std::vector<stf::PackEntry> pack;
   std::string error;
-  if (!stf::read_pack_file(argv[1], entries, error) || entries.empty()) {
-    std::fprintf(stderr, "walk_medium: %s\n", entries.empty() && error.empty() ? "empty pack" : error.c_str());
+  if (!stf::read_pack_file(argv[1], pack, error) || pack.empty()) {
+    std::fprintf(stderr, "walk_medium: %s\n", error.empty() ? "empty pack" : error.c_str());
     return 1;
   }
-  const stf::ShellSampler sampler(entries.front().model);
-  const double sigma_t = argc > 2 ? std::atof(argv[2]) : 10.0;
-  const double big_radius = argc > 3 ? std::atof(argv[3]) : 20.0;
-  const int paths = argc > 4 ? std::atoi(argv[4]) : 1000;
-  // The model's sphere has optical radius tau: in this medium its radius is tau / sigma_t.
-  const double stride = sampler.model().tau / sigma_t;
+  const std::string medium = argc > 2 ? argv[2] : pack.front().name;
+  const double sigma_t = argc > 3 ? std::atof(argv[3]) : 10.0;
+  const double big_radius = argc > 4 ? std::atof(argv[4]) : 20.0;
+  const int paths = argc > 5 ? std::atoi(argv[5]) : 1000;
+  // One sampler per pack entry, built once (they are const and thread-safe).
+  std::map<const stf::PackEntry*, stf::ShellSampler> samplers;
+  for (const stf::PackEntry& e : pack) samplers.emplace(&e, stf::ShellSampler(e.model));
 
   std::mt19937_64 rng(1);
   std::uniform_real_distribution<double> u(0.0, 1.0);
-  double steps = 0, throughput = 0, distance = 0;
+  double strides = 0, throughput = 0, distance = 0;
   for (int p = 0; p < paths; ++p) {
     stf::Vec3 x{0, 0, 0}, w{0, 0, 1};
-    double weight = 1;
-    while (big_radius - stf::length(x) >= stride) {
-      stf::WorldExit e = sampler.sample_world(x, w, stride, u(rng), u(rng), u(rng), u(rng));
-      x = e.point;
-      w = e.direction;
+    double weight = 1, radius = 0;
+    while (const stf::PackEntry* e = stf::find_entry(pack, medium, sigma_t, big_radius - stf::length(x), radius)) {
+      const stf::ShellSampler& sampler = samplers.at(e);
+      stf::WorldExit exit = sampler.sample_world(x, w, radius, u(rng), u(rng), u(rng), u(rng));
+      x = exit.point;
+      w = exit.direction;
       weight *= sampler.escape_probability();
-      steps += 1;
+      strides += 1;
     }
     throughput += weight;
     distance += stf::length(x);
   }
-  std::printf("walk_medium: %d paths, %.2f strides per path of radius %.4g, mean throughput %.4g, "
-              "mean distance from the centre %.4g (boundary at %.4g)\n",
-              paths, steps / paths, stride, throughput / paths, distance / paths, big_radius);
+  std::printf("walk_medium: %s, %d paths, %.2f strides per path, mean throughput %.4g, mean distance from "
+              "the centre %.4g (boundary at %.4g)\n",
+              medium.c_str(), paths, strides / paths, throughput / paths, distance / paths, big_radius);
   return 0;
 }

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs stf from the build tree, builds examples/ against the installed package (the way a
-# renderer would), and walks a path with a freshly fitted pack.
+# renderer would), and walks paths with a freshly built scene pack.
 #   install_test.sh BUILD_DIR SOURCE_DIR
 set -euo pipefail
 build=$1 source=$2
@@ -13,8 +13,22 @@ cmake --build "$work/example" > /dev/null
 if ldd "$work/example/walk_medium" | grep -Eiq "ceres|hdf5|healpix|wcs|eigen"; then
   echo "walk_medium links more than the standard library"; exit 1
 fi
-"$build/stf" precompute --sigma-s 8 --sigma-a 0.2 --g 0.6 --alpha-bins 18 --grid healpix:4 --paths 20000 --quiet -o "$work/t.h5"
-"$build/stf" fit "$work/t.h5" --model vmf:2 --quiet --pack "$work/m.stfpack" -o "$work/m.h5"
-out=$("$work/example/walk_medium" "$work/m.stfpack" 8.2 20 200)
+# A scene of one medium with spheres from tau 2 to 16, built into a pack.
+cat > "$work/scene.toml" <<'TOML'
+[settings]
+paths = 20000
+grid = "healpix:4"
+alpha_bins = 18
+model = "vmf:2"
+[[media]]
+name = "fog"
+sigma_s = 8.0
+sigma_a = 0.2
+g = 0.6
+radius_min = 0.25
+radius_max = 2.0
+TOML
+"$build/stf" build "$work/scene.toml" --quiet -o "$work/scene.stfpack"
+out=$("$work/example/walk_medium" "$work/scene.stfpack" fog 8.2 20 200)
 echo "$out"
 echo "$out" | grep -q "strides per path"

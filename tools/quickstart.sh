@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # stf Quick start on Debian 12.
-#   tools/quickstart.sh          install what is missing (apt), build, precompute the default
-#                                medium of data/ on both grids, fit it, and plot both into out/
+#   tools/quickstart.sh          install what is missing (apt), build, build the default scene
+#                                of data/ into a pack and report on it; precompute, fit and plot
+#                                the default medium; everything into out/
 #   tools/quickstart.sh --test   the same set-up, then the whole test suite (ctest)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -30,10 +31,13 @@ if [ "${1:-}" = "--test" ]; then
 fi
 
 mkdir -p out
+build/stf build data/scenes/default.toml --cache out/default-scene.cache -o out/default.stfpack
+build/stf report out/default.stfpack -o out/report
 build/stf --config data/default_medium.toml precompute -o out/default_healpix.h5
 build/stf --config data/default_medium.toml precompute --grid csc:45 -o out/default_csc.h5
 build/stf plot out/default_csc.h5 out/default_healpix.h5 --alpha 30 -o out/default_alpha30.png
 build/stf fit out/default_healpix.h5 --model vmf:4 --report out/default_vmf4.json -o out/default_vmf4.h5
 build/stf plot out/default_healpix.h5 --model out/default_vmf4.h5 --alpha 30 -o out/default_vmf4_alpha30.png
-echo "quickstart: in out/: default_alpha30.png (CSC above, HEALPix below)," \
+echo "quickstart: in out/: default.stfpack and report/ (report.md, PNGs, JSON)," \
+     "default_alpha30.png (CSC above, HEALPix below)," \
      "default_vmf4_alpha30.png (table and fitted vmf:4 side by side)" >&2

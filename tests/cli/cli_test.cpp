@@ -35,15 +35,21 @@ class Cli : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
 
-  Result stf(const std::string& args) {
-    std::string err = (dir_ / "stderr.txt").string();
-    std::string cmd = std::string(STF_BINARY) + " " + args + " 2>'" + err + "' >/dev/null";
+  Result stf(const std::string& args, std::string* out_text = nullptr) {
+    std::string err = (dir_ / "stderr.txt").string(), out = (dir_ / "stdout.txt").string();
+    std::string cmd = std::string(STF_BINARY) + " " + args + " 2>'" + err + "' >'" + out + "'";
     int raw = std::system(cmd.c_str());
-    std::ifstream in(err);
-    std::stringstream ss;
-    ss << in.rdbuf();
+    auto slurp = [](const std::string& path) {
+      std::ifstream in(path);
+      std::stringstream ss;
+      ss << in.rdbuf();
+      return ss.str();
+    };
+    std::string err_text = slurp(err);
+    if (out_text) *out_text = slurp(out);
     fs::remove(err);
-    return {WIFEXITED(raw) ? WEXITSTATUS(raw) : 128 + WTERMSIG(raw), ss.str()};
+    fs::remove(out);
+    return {WIFEXITED(raw) ? WEXITSTATUS(raw) : 128 + WTERMSIG(raw), err_text};
   }
 
   // Files in the test folder, other than the captured stderr.
@@ -223,8 +229,45 @@ TEST_F(Cli, PackSampleAndEvalFollowTheContract) {
   EXPECT_NE(zero.err.find("--count"), std::string::npos) << zero.err;
 }
 
+// The default scene's plan: stdout is JSON with shared, skipped and (after a build) cached
+// entries and their reasons; a bad scene gets one line with file, line and key.
+TEST_F(Cli, BuildPlansTheDefaultScene) {
+  const std::string scene = std::string(STF_SOURCE_DIR) + "/data/scenes/default.toml";
+  std::string json;
+  Result r = stf("build " + scene + " --plan-only --json --cache " + out("cache"), &json);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(json.find("\"entries\""), std::string::npos);
+  EXPECT_NE(json.find("\"action\": \"skip\""), std::string::npos);
+  EXPECT_NE(json.find("\"media\": [\"haze\"]"), std::string::npos);
+  EXPECT_NE(json.find("[\"cloud_small\", \"cloud_large\"]"), std::string::npos);
+  EXPECT_NE(json.find("\"reason\""), std::string::npos);
+  EXPECT_EQ(json.front(), '{');
+  EXPECT_EQ(json.find("stf build"), std::string::npos);  // logs stay on stderr
+
+  std::ofstream(out("bad.toml")) << "[[media]]\nname = \"m\"\nsigma_s = 1.0\nsigma_a = 0.0\ng = 2.0\nsize = 1.0\n";
+  Result bad = stf("build " + out("bad.toml") + " --plan-only");
+  EXPECT_NE(bad.status, 0);
+  EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
+  EXPECT_NE(bad.err.find("bad.toml:5: media[0].g"), std::string::npos) << bad.err;
+}
+
 bool have_matplotlib() {
   return std::system("/usr/bin/python3 -c 'import matplotlib, h5py' >/dev/null 2>&1") == 0;
+}
+
+TEST_F(Cli, ReportWritesPlotsJsonAndSummary) {
+  if (!have_matplotlib()) GTEST_SKIP() << "Debian's python3-matplotlib / python3-h5py not installed";
+  Result r = stf("report --medium dense:6:0.1:0.5 -o " + out("report"));
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* f : {"report.md", "report.json", "error_vs_runtime.png", "bytes_vs_error.png", "runtime_studies.png"})
+    EXPECT_TRUE(fs::exists(dir_ / "report" / f)) << f;
+  std::ifstream md(out("report/report.md"));
+  std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("Error against run time"), std::string::npos);
+  EXPECT_NE(text.find("thesis Fig. 4.7"), std::string::npos);
+  Result bad = stf("report --medium dense:6:0.1:1.5 -o " + out("r2"));
+  EXPECT_NE(bad.status, 0);
+  EXPECT_NE(bad.err.find("--medium"), std::string::npos) << bad.err;
 }
 
 TEST_F(Cli, PlotDrawsCscAndHealpixSideBySide) {
