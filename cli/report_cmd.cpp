@@ -59,24 +59,28 @@ std::string medium_json(const std::string& spec) {
   return buf;
 }
 
-// Distinct (tau, albedo, g) entries of a pack as unit-radius media, at most `n`.
+// The pack's media as unit-radius media, at most `n`: for each medium name its entry of the
+// largest tau (the sphere a renderer uses deep inside, where stepping pays off most).
 std::vector<std::string> pack_media(const std::string& path, int n) {
   std::vector<PackEntry> entries;
   std::string error;
   if (!read_pack_file(path, entries, error)) fail(path + ": " + error);
-  std::vector<std::string> media;
-  std::vector<std::array<double, 3>> seen;
+  std::vector<const PackEntry*> chosen;
   for (const PackEntry& e : entries) {
-    std::array<double, 3> key{e.model.tau, e.model.albedo, e.model.g};
-    if (std::find(seen.begin(), seen.end(), key) != seen.end()) continue;
-    seen.push_back(key);
-    char spec[256];
-    std::snprintf(spec, sizeof spec, "%s tau %g:%.17g:%.17g:%.17g", e.name.c_str(), key[0], key[1] * key[0],
-                  (1 - key[1]) * key[0], key[2]);
-    media.push_back(medium_json(spec));
-    if (int(media.size()) == n) break;
+    auto same = std::find_if(chosen.begin(), chosen.end(), [&](const PackEntry* c) { return c->name == e.name; });
+    if (same == chosen.end()) chosen.push_back(&e);
+    else if (e.model.tau > (*same)->model.tau) *same = &e;
   }
-  if (media.empty()) fail(path + ": the pack holds no model");
+  if (chosen.empty()) fail(path + ": the pack holds no model");
+  std::vector<std::string> media;
+  for (const PackEntry* e : chosen) {
+    if (int(media.size()) == n) break;
+    const StfModel& m = e->model;
+    char spec[256];
+    std::snprintf(spec, sizeof spec, "%s tau %g:%.17g:%.17g:%.17g", e->name.c_str(), m.tau, m.albedo * m.tau,
+                  (1 - m.albedo) * m.tau, m.g);
+    media.push_back(medium_json(spec));
+  }
   return media;
 }
 
@@ -125,7 +129,7 @@ void run_report(const ReportOptions& o) {
 void add_report_command(CLI::App& app) {
   auto o = std::make_shared<ReportOptions>();
   CLI::App* cmd = app.add_subcommand("report", "Error against run time and run-time studies (PNG, JSON, markdown), or --stress");
-  cmd->add_option("pack", o->pack, "A scene's pack: its first distinct entries are studied")->check(CLI::ExistingFile);
+  cmd->add_option("pack", o->pack, "A scene's pack: its first media, each at its largest tau, are studied")->check(CLI::ExistingFile);
   cmd->add_option("--medium", o->media, "NAME:SIGMA_S:SIGMA_A:G of a unit-radius medium to study (repeatable)");
   cmd->add_option("--max-media", o->max_media, "Entries of the pack to study")->capture_default_str();
   cmd->add_flag("--full", o->full, "1e4..1e7 paths, a 1e8-path reference and 90 alpha bins (long)");
