@@ -17,6 +17,11 @@ std::atomic<bool> interrupted{false};
 
 void fail(const std::string& message) { throw Error(message); }
 
+std::string tools_dir() {
+  if (const char* env = std::getenv("STF_TOOLS_DIR")) return env;
+  return STF_TOOLS_DIR;
+}
+
 std::int64_t parse_count(const std::string& text, const std::string& option, std::int64_t min,
                          std::int64_t max) {
   const std::string allowed = option + " must be a whole number in " + std::to_string(min) + ".." +

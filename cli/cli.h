@@ -33,6 +33,9 @@ struct Error : std::runtime_error {
 std::int64_t parse_count(const std::string& text, const std::string& option, std::int64_t min,
                          std::int64_t max);
 
+// Folder of the Python drawing scripts: $STF_TOOLS_DIR, else the source tree's tools/.
+std::string tools_dir();
+
 // Set by SIGINT / SIGTERM once install_interrupt_handler() ran.
 extern std::atomic<bool> interrupted;
 void install_interrupt_handler();

@@ -76,10 +76,6 @@ std::string describe(const Table& t, int bin, const std::string& what) {
 
 int alpha_bin(const Table& t, double alpha) { return std::min(int(alpha / kPi * t.alpha_bins), t.alpha_bins - 1); }
 
-std::string tools_dir() {
-  if (const char* env = std::getenv("STF_TOOLS_DIR")) return env;
-  return STF_TOOLS_DIR;
-}
 
 void run_plot(const PlotOptions& o) {
   if (!(o.alpha_deg >= 0 && o.alpha_deg <= 180)) fail("--alpha must be in [0, 180] degrees");

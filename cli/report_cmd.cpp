@@ -34,10 +34,6 @@ std::string self_path() {
   return n > 0 ? std::string(buf, std::size_t(n)) : "stf";
 }
 
-std::string tools_dir() {
-  if (const char* env = std::getenv("STF_TOOLS_DIR")) return env;
-  return STF_TOOLS_DIR;
-}
 
 // "name:sigma_s:sigma_a:g" -> JSON object.
 std::string medium_json(const std::string& spec) {
