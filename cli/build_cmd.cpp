@@ -35,10 +35,12 @@ void run_build(const BuildOptions& o) {
   const int threads = int(parse_count(o.threads, "--threads", 0, 4096));
   AtomicOutput check(o.output, "-o");  // fail early on an unwritable output
   install_interrupt_handler();
-  int computed = scene::build(sc, plan, check.temp_path(), threads, [&](int i, int n, const scene::PlanEntry& e) {
-    if (interrupted) fail("interrupted; finished entries stay in the cache");
-    if (!o.quiet) std::fprintf(stderr, "stf build: [%d/%d] tau %g albedo %g g %g\n", i + 1, n, e.tau, e.albedo, e.g);
-  });
+  int computed = scene::build(
+      sc, plan, check.temp_path(), threads,
+      [&](int i, int n, const scene::PlanEntry& e) {
+        if (!o.quiet) std::fprintf(stderr, "stf build: [%d/%d] tau %g albedo %g g %g\n", i + 1, n, e.tau, e.albedo, e.g);
+      },
+      &interrupted);
   check.commit();
   if (!o.quiet) std::fprintf(stderr, "stf build: computed %d entries, pack -> %s\n", computed, o.output.c_str());
 }

@@ -65,8 +65,11 @@ void run_fit(const FitOptions& o) {
   settings.alpha_degree = o.alpha_degree;
   Table table = read_table(o.table);
   AtomicOutput out(o.output, "-o");
+  install_interrupt_handler();
+  settings.cancel = &interrupted;
   fit::FitReport report;
   StfModel model = fit::fit_table(table, settings, &report);
+  if (interrupted) fail("interrupted; no model written");
   fit::write_model(model, report, {o.model, o.table, &table}, out.temp_path());
   out.commit();
   if (!o.report.empty()) write_text(report_json(report, model, o.model), o.report, "--report");

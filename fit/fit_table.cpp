@@ -60,16 +60,19 @@ double sum(const std::vector<double>& v) {
   return s;
 }
 
-// Runs f(bin) for every bin over `threads` threads. Bins are independent, so the result does
-// not depend on the thread count.
+// Runs f(bin) for every bin over the settings' threads, until cancelled. Bins are
+// independent, so the result does not depend on the thread count.
 template <typename F>
-void for_each_bin(int bins, int threads, F f) {
-  if (threads <= 0) threads = int(std::max(1u, std::thread::hardware_concurrency()));
+void for_each_bin(int bins, const FitSettings& s, F f) {
+  int threads = s.threads > 0 ? s.threads : int(std::max(1u, std::thread::hardware_concurrency()));
   std::atomic<int> next{0};
   std::vector<std::thread> pool;
   for (int t = 0; t < std::min(threads, bins); ++t)
     pool.emplace_back([&] {
-      for (int b; (b = next.fetch_add(1)) < bins;) f(b);
+      for (int b; (b = next.fetch_add(1)) < bins;) {
+        if (s.cancel && s.cancel->load(std::memory_order_relaxed)) break;
+        f(b);
+      }
     });
   for (auto& th : pool) th.join();
 }
@@ -110,7 +113,7 @@ BinFits fit_bins(const Table& t, int half, ModelKind kind, int size, const Quadr
   fits.status.assign(t.alpha_bins, BinStatus::kBorrowed);
   fits.lobes.resize(t.alpha_bins);
   fits.sh.resize(t.alpha_bins);
-  for_each_bin(t.alpha_bins, s.threads, [&](int b) {
+  for_each_bin(t.alpha_bins, s, [&](int b) {
     std::vector<double> counts = bin_counts(t, half, b);
     double n = sum(counts);
     if (n < s.min_escapes) return;
@@ -204,7 +207,7 @@ HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const D
   best_t = 0;
   for (double smoothing : s.kind == ModelKind::kSh ? kSmoothing : std::vector<double>{0}) {
     std::vector<std::vector<double>> p(t.alpha_bins);
-    for_each_bin(t.alpha_bins, s.threads,
+    for_each_bin(t.alpha_bins, s,
                  [&](int b) { p[b] = bin_probabilities(fits, b, s.kind, size, smoothing, levels, basis); });
     HeldOut h = score(t, 1, p);
     if (best.log_p.empty() || h.nll < best.nll) best = std::move(h), best_t = smoothing;
@@ -321,7 +324,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   // Diagnostics against the full table, with the model as a sampler will use it.
   r.bins.resize(t.alpha_bins);
   const int params_per_bin = s.kind == ModelKind::kVmf ? 5 * size - 1 : sh_count(size) - 1;
-  for_each_bin(t.alpha_bins, s.threads, [&](int b) {
+  for_each_bin(t.alpha_bins, s, [&](int b) {
     std::vector<double> counts = bin_counts(t, -1, b);
     BinDiagnostics& d = r.bins[b];
     d.escapes = sum(counts);

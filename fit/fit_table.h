@@ -2,6 +2,7 @@
 // escape fractions, with model size chosen on the held-out half-table when asked.
 #pragma once
 
+#include <atomic>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,9 @@ struct FitSettings {
   int threads = 0;         // 0: all cores; results do not depend on it
   int min_escapes = 10;    // bins with fewer escapes borrow their neighbour's model
   int alpha_degree = -1;   // sh: >= 0 replaces the bins' coefficients by a Chebyshev series in cos(alpha)
+  // When set (e.g. by Ctrl-C), no further bin is started and fit_table returns early with a
+  // model that must be thrown away.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 // Parses "vmf:K", "vmf:auto", "sh:L", "sh:auto" (1 <= K <= 16, 0 <= L <= 32). Throws

@@ -33,7 +33,7 @@ void write_atomically(const std::string& path, Write write) {
   }
 }
 
-void compute(const Plan& plan, const PlanEntry& e, int threads) {
+void compute(const Plan& plan, const PlanEntry& e, int threads, const std::atomic<bool>* cancel) {
   const Settings& s = plan.settings;
   PrecomputeSettings ps;
   ps.paths = s.paths;
@@ -41,12 +41,15 @@ void compute(const Plan& plan, const PlanEntry& e, int threads) {
   ps.alpha_bins = s.alpha_bins;
   ps.seed = s.seed;
   ps.threads = threads;
-  std::optional<Table> table = precompute({e.albedo * e.tau, (1 - e.albedo) * e.tau, e.g, 1}, ps);
+  std::optional<Table> table = precompute({e.albedo * e.tau, (1 - e.albedo) * e.tau, e.g, 1}, ps, cancel);
+  if (!table) throw std::runtime_error("interrupted; finished entries stay in the cache");
   write_atomically(table_path(plan, e), [&](const std::string& p) { write_table(*table, p); });
   fit::FitSettings fs = fit::parse_model_spec(s.model);
   fs.threads = threads;
+  fs.cancel = cancel;
   fit::FitReport report;
   StfModel model = fit::fit_table(*table, fs, &report);
+  if (cancel && *cancel) throw std::runtime_error("interrupted; finished entries stay in the cache");
   write_atomically(model_path(plan, e), [&](const std::string& p) {
     fit::write_model(model, report, {s.model, table_path(plan, e), &*table}, p);
   });
@@ -54,14 +57,15 @@ void compute(const Plan& plan, const PlanEntry& e, int threads) {
 
 }  // namespace
 
-int build(const Scene& scene, const Plan& plan, const std::string& pack_path, int threads, const BuildProgress& progress) {
+int build(const Scene& scene, const Plan& plan, const std::string& pack_path, int threads, const BuildProgress& progress,
+          const std::atomic<bool>* cancel) {
   ::mkdir(plan.cache_dir.c_str(), 0755);
   int to_compute = 0, done = 0;
   for (const PlanEntry& e : plan.entries) to_compute += e.action == "compute";
   for (const PlanEntry& e : plan.entries) {
     if (e.action != "compute") continue;
     if (progress) progress(done, to_compute, e);
-    compute(plan, e, threads);
+    compute(plan, e, threads, cancel);
     ++done;
   }
   std::vector<PackEntry> pack;

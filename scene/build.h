@@ -1,6 +1,7 @@
 // Carrying out a plan: compute what is missing into the cache, then pack what the scene needs.
 #pragma once
 
+#include <atomic>
 #include <functional>
 #include <string>
 
@@ -13,8 +14,9 @@ using BuildProgress = std::function<void(int, int, const PlanEntry&)>;
 
 // Computes the "compute" entries (precompute, then fit) into the cache, atomically per file,
 // and writes the pack: for every medium in scene order, its entries by increasing tau, named
-// after the medium. Returns the number of entries computed.
+// after the medium. Returns the number of entries computed. When `cancel` is set it stops
+// with std::runtime_error; finished entries stay in the cache.
 int build(const Scene& scene, const Plan& plan, const std::string& pack_path, int threads,
-          const BuildProgress& progress = {});
+          const BuildProgress& progress = {}, const std::atomic<bool>* cancel = nullptr);
 
 }  // namespace stf::scene

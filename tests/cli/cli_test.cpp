@@ -156,6 +156,38 @@ TEST_F(Cli, InterruptLeavesNothingHalfWrittenAndKeepsTheOldFile) {
   EXPECT_EQ(stf::read_table(out("t.h5")).paths, 2000);
 }
 
+// Runs stf with `args`, sends SIGINT after `ms` milliseconds; returns the exit status.
+int interrupt_after(std::vector<std::string> args, int ms) {
+  pid_t pid = ::fork();
+  if (pid == 0) {
+    std::vector<char*> argv = {const_cast<char*>(STF_BINARY)};
+    for (std::string& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    ::execv(STF_BINARY, argv.data());
+    ::_exit(127);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+TEST_F(Cli, InterruptedFitAndBuildLeaveNothingHalfWritten) {
+  ASSERT_EQ(stf("precompute --sigma-s 10 --sigma-a 0 --g 0.5 --grid csc:30 --paths 3e5 --quiet -o " + out("t.h5")).status, 0);
+  EXPECT_NE(interrupt_after({"fit", out("t.h5"), "--model", "vmf:8", "--quiet", "-o", out("m.h5")}, 400), 0);
+  EXPECT_EQ(files(), std::vector<std::string>{"t.h5"});
+
+  std::ofstream(out("scene.toml")) << "[settings]\npaths = 1e7\n[[media]]\nname = \"m\"\nsigma_s = 20.0\n"
+                                      "sigma_a = 0.0\ng = 0.0\nradius_min = 0.5\nradius_max = 1.0\n";
+  EXPECT_NE(interrupt_after({"build", out("scene.toml"), "--quiet", "--cache", out("cache"), "-o", out("s.stfpack")}, 500), 0);
+  for (const auto& e : fs::recursive_directory_iterator(dir_)) {
+    std::string name = e.path().filename().string();
+    EXPECT_EQ(name.find(".tmp-"), std::string::npos) << name;
+    EXPECT_NE(name, "s.stfpack");
+  }
+}
+
 TEST_F(Cli, HelpAndVersion) {
   EXPECT_EQ(stf("--help").status, 0);
   EXPECT_EQ(stf("precompute --help").status, 0);
