@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <fstream>
 #include <stdexcept>
 #include <vector>
 #include <string>
@@ -12,14 +13,7 @@ namespace CLI {
 class App;
 }
 
-namespace stf {
-struct PackEntry;
-}
-
 namespace stf::cli {
-
-// Writes a pack atomically (see AtomicOutput).
-void write_pack_file(const std::vector<PackEntry>& entries, const std::string& path, const std::string& option);
 
 // A user error. main() prints it as one line, "stf: error: <message>", and exits with status 2;
 // throwing (not exiting) lets destructors remove temporary files first.
@@ -57,6 +51,19 @@ class AtomicOutput {
   std::string path_, temp_;
   bool committed_ = false;
 };
+
+// Writes `bytes` (a string or a byte vector) to `path` through an AtomicOutput named by
+// `option`.
+template <typename Bytes>
+void write_file(const std::string& path, const std::string& option, const Bytes& bytes) {
+  AtomicOutput out(path, option);
+  {
+    std::ofstream f(out.temp_path(), std::ios::binary);
+    f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+    if (!f) fail("cannot write " + path);
+  }
+  out.commit();
+}
 
 // A progress bar with rate and ETA on stderr, shown only when stderr is a terminal.
 class ProgressBar {

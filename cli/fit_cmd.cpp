@@ -42,16 +42,6 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
   return s.str();
 }
 
-void write_text(const std::string& text, const std::string& path, const std::string& option) {
-  AtomicOutput out(path, option);
-  {
-    std::ofstream f(out.temp_path());
-    f << text;
-    if (!f) fail("cannot write " + path);
-  }
-  out.commit();
-}
-
 void run_fit(const FitOptions& o) {
   fit::FitSettings settings;
   try {
@@ -72,8 +62,8 @@ void run_fit(const FitOptions& o) {
   if (interrupted) fail("interrupted; no model written");
   fit::write_model(model, report, {o.model, o.table, &table}, out.temp_path());
   out.commit();
-  if (!o.report.empty()) write_text(report_json(report, model, o.model), o.report, "--report");
-  if (!o.pack.empty()) write_pack_file({PackEntry{"", model}}, o.pack, "--pack");
+  if (!o.report.empty()) write_file(o.report, "--report", report_json(report, model, o.model));
+  if (!o.pack.empty()) write_file(o.pack, "--pack", write_pack({PackEntry{"", model}}));
   if (!o.quiet)
     std::fprintf(stderr, "stf fit: %s size %d in %.3g s, %lld bytes (table %lld bytes) -> %s\n", o.model.c_str(),
                  report.chosen_size, report.fit_time_s, (long long)model.packed_bytes(),
@@ -99,7 +89,7 @@ void run_eval(const EvalOptions& o) {
   }
   std::string json = fit::to_json(ev);
   if (o.json.empty()) std::fputs(json.c_str(), stdout);
-  else write_text(json, o.json, "--json");
+  else write_file(o.json, "--json", json);
   std::fprintf(stderr, "stf eval: tv %.4g, kl %.4g%s\n", ev.tv, ev.kl,
                ev.model_bytes >= 0 ? (", " + std::to_string(ev.model_bytes) + " model bytes").c_str() : "");
 }

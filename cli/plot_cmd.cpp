@@ -99,7 +99,7 @@ void run_plot(const PlotOptions& o) {
       int bin = alpha_bin(t, alpha);
       StfModel model = fit::read_model(o.model);
       if (model.bins() != t.alpha_bins) fail("--model has " + std::to_string(model.bins()) + " alpha bins, the table " + std::to_string(t.alpha_bins));
-      std::vector<double> density = fit::model_cell_probabilities(model, bin, *grid);
+      std::vector<double> density = fit::model_cell_probabilities(model, bin, fit::QuadratureLevels(*grid));
       for (std::int64_t c = 0; c < t.cells; ++c) density[c] /= t.solid_angle[c];
       h5::put_attr(file, "side_by_side", 1);
       write_panel(file, int(o.tables.size()), t, *grid, density,

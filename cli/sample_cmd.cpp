@@ -49,7 +49,7 @@ void run_pack(const PackOptions& o) {
     if (fit::file_format(o.models[i]) != "stf-model") fail("'" + o.models[i] + "' is not an stf model");
     entries.push_back({o.names.empty() ? "" : o.names[i], fit::read_model(o.models[i])});
   }
-  write_pack_file(entries, o.output, "-o");
+  write_file(o.output, "-o", write_pack(entries));
 }
 
 struct SampleOptions {
@@ -111,17 +111,6 @@ void run_sample(const SampleOptions& o) {
 }
 
 }  // namespace
-
-void write_pack_file(const std::vector<PackEntry>& entries, const std::string& path, const std::string& option) {
-  std::vector<std::uint8_t> bytes = write_pack(entries);
-  AtomicOutput out(path, option);
-  {
-    std::ofstream f(out.temp_path(), std::ios::binary);
-    f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
-    if (!f) fail("cannot write " + path);
-  }
-  out.commit();
-}
 
 void add_pack_command(CLI::App& app) {
   auto o = std::make_shared<PackOptions>();

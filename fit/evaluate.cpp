@@ -8,7 +8,6 @@
 
 #include "cell_probability.h"
 #include "grid.h"
-#include "vmf_fit.h"
 
 namespace stf::fit {
 
@@ -67,22 +66,22 @@ Evaluation evaluate_bins(const Table& reference, CandidateBin candidate) {
 
 }  // namespace
 
-std::vector<double> model_cell_probabilities(const StfModel& m, int b, const DirectionGrid& grid) {
+std::vector<double> model_cell_probabilities(const StfModel& m, int b, const QuadratureLevels& levels) {
   if (m.kind == ModelKind::kVmf) {
     std::vector<VmfLobe> lobes(m.vmf.begin() + std::ptrdiff_t(b) * m.lobes, m.vmf.begin() + std::ptrdiff_t(b + 1) * m.lobes);
     double kappa = 0;
     for (const VmfLobe& l : lobes) kappa = std::max(kappa, l.kappa);
     // The same quadrature rule the fitter used for lobes this narrow.
-    QuadratureLevels levels(grid);
     return vmf_cell_probabilities(lobes, levels.for_kappa(kappa));
   }
-  return density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, w); }, grid.quadrature(2));
+  return density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, w); }, levels.at(2));
 }
 
 Evaluation evaluate(const StfModel& m, const Table& reference, const std::vector<double>& chi2_dof) {
   check_alpha_bins(m.alpha_edges, reference);
   std::unique_ptr<DirectionGrid> grid = make_grid(reference.grid);
-  Evaluation ev = evaluate_bins(reference, [&](int b) { return model_cell_probabilities(m, b, *grid); });
+  const QuadratureLevels levels(*grid);
+  Evaluation ev = evaluate_bins(reference, [&](int b) { return model_cell_probabilities(m, b, levels); });
   if (chi2_dof.size() == ev.per_alpha.size()) {
     ev.chi2_dof = 0;
     for (std::size_t b = 0; b < chi2_dof.size(); ++b) {

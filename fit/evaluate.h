@@ -7,6 +7,7 @@
 
 #include "stf/model.h"
 #include "grid.h"
+#include "vmf_fit.h"
 #include "table.h"
 
 namespace stf::fit {
@@ -26,8 +27,9 @@ struct Evaluation {
   std::int64_t table_bytes = 0;   // the thesis's raw layout of the evaluated grid: bins * cells * 4
 };
 
-// Per-cell probabilities of the model in alpha bin b, integrated over `grid`'s cells.
-std::vector<double> model_cell_probabilities(const StfModel& model, int bin, const DirectionGrid& grid);
+// Per-cell probabilities of the model in alpha bin b, integrated over the cells of the grid
+// whose quadratures `levels` holds (build them once for all bins).
+std::vector<double> model_cell_probabilities(const StfModel& model, int bin, const QuadratureLevels& levels);
 
 // Throws std::invalid_argument when the alpha bins (or, for tables, the grids) differ.
 Evaluation evaluate(const StfModel& model, const Table& reference, const std::vector<double>& chi2_dof = {});

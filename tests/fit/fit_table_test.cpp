@@ -37,8 +37,9 @@ void expect_sane(const StfModel& m, const char* what) {
   EXPECT_NEAR(alpha, 1, 1e-12) << what;
   EXPECT_TRUE(std::isfinite(m.escape_probability)) << what;
   auto grid = make_grid("healpix:8");
+  const QuadratureLevels levels(*grid);
   for (int b = 0; b < m.bins(); ++b) {
-    std::vector<double> p = model_cell_probabilities(m, b, *grid);
+    std::vector<double> p = model_cell_probabilities(m, b, levels);
     double s = 0;
     for (double v : p) {
       ASSERT_TRUE(std::isfinite(v)) << what << " bin " << b;
