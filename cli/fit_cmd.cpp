@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "cli.h"
@@ -11,6 +12,7 @@
 #include "fit_table.h"
 #include "model_io.h"
 #include "stf/pack.h"
+#include "tolerance.h"
 
 namespace stf::cli {
 
@@ -20,6 +22,8 @@ struct FitOptions {
   std::string table, model = "vmf:4", output, report, pack;
   std::string threads = "0";
   int alpha_degree = -1;
+  double tolerance = 0;
+  std::string heldout;
   bool quiet = false;
 };
 
@@ -42,6 +46,29 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
   return s.str();
 }
 
+// --tolerance: resolution and size chosen and certified on the --heldout table.
+fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, const fit::FitSettings& settings,
+                                   fit::Provenance& provenance) {
+  if (o.heldout.empty()) fail("--tolerance needs --heldout: an independent table of the same medium (another --seed)");
+  if (o.alpha_degree >= 0) fail("--alpha-degree and --tolerance cannot be combined");
+  const double tolerance = o.tolerance;
+  if (!(tolerance > 0 && tolerance < 1)) fail("--tolerance must be a TV distance in (0, 1), got " + std::to_string(tolerance));
+  Table heldout = read_table(o.heldout);
+  if (heldout.alpha_bins != table.alpha_bins || heldout.grid != table.grid || heldout.seed == table.seed)
+    fail("--heldout must have the table's grid and alpha bins and another seed");
+  fit::ToleranceFit r = fit::fit_to_tolerance(table, heldout, tolerance, settings);
+  provenance.tolerance = tolerance, provenance.tv_bound = r.certificate.tv_bound, provenance.tolerance_met = r.met;
+  provenance.heldout_table = o.heldout, provenance.heldout_paths = heldout.paths;
+  if (!o.quiet) {
+    std::string tried;
+    for (auto [size, bound] : r.attempts) tried += " " + std::to_string(size) + ":" + std::to_string(bound).substr(0, 6);
+    std::fprintf(stderr, "stf fit: TV bound by size:%s\n", tried.c_str());
+    std::fprintf(stderr, "stf fit: %d alpha bins, %s, size %d: TV <= %.3g (%s %.3g)\n", r.fitted.alpha_bins,
+                 r.fitted.grid.c_str(), r.size, r.certificate.tv_bound, r.met ? "within" : "NOT within", tolerance);
+  }
+  return r;
+}
+
 void run_fit(const FitOptions& o) {
   fit::FitSettings settings;
   try {
@@ -58,9 +85,19 @@ void run_fit(const FitOptions& o) {
   install_interrupt_handler();
   settings.cancel = &interrupted;
   fit::FitReport report;
-  StfModel model = fit::fit_table(table, settings, &report);
+  StfModel model;
+  fit::Provenance provenance;
+  provenance.model_spec = o.model, provenance.source_table = o.table, provenance.table = &table;
+  std::optional<fit::ToleranceFit> tolerant;
+  if (o.tolerance == 0) {
+    model = fit::fit_table(table, settings, &report);
+  } else {
+    tolerant = fit_to_tolerance(o, table, settings, provenance);
+    model = tolerant->model, report = tolerant->report;
+    provenance.table = &tolerant->fitted;  // the coarsened table the model was fitted to
+  }
   if (interrupted) fail("interrupted; no model written");
-  fit::write_model(model, report, {o.model, o.table, &table}, out.temp_path());
+  fit::write_model(model, report, provenance, out.temp_path());
   out.commit();
   if (!o.report.empty()) write_file(o.report, "--report", report_json(report, model, o.model));
   if (!o.pack.empty()) write_file(o.pack, "--pack", write_pack({PackEntry{"", model}}));
@@ -90,7 +127,7 @@ void run_eval(const EvalOptions& o) {
   std::string json = fit::to_json(ev);
   if (o.json.empty()) std::fputs(json.c_str(), stdout);
   else write_file(o.json, "--json", json);
-  std::fprintf(stderr, "stf eval: tv %.4g, kl %.4g%s\n", ev.tv, ev.kl,
+  std::fprintf(stderr, "stf eval: tv %.4g (joint %.4g), kl %.4g%s\n", ev.tv, ev.joint_tv, ev.kl,
                ev.model_bytes >= 0 ? (", " + std::to_string(ev.model_bytes) + " model bytes").c_str() : "");
 }
 
@@ -108,6 +145,10 @@ void add_fit_command(CLI::App& app) {
   cmd->add_option("--alpha-degree", o->alpha_degree,
                   "sh: store each coefficient as a Chebyshev series of this degree in cos(alpha)")
       ->capture_default_str();
+  cmd->add_option("--tolerance", o->tolerance,
+                  "Target TV distance: fewest alpha bins, coarsest grid and smallest size that are certified within it");
+  cmd->add_option("--heldout", o->heldout, "With --tolerance: an independent table (other seed) that certifies the fit")
+      ->check(CLI::ExistingFile);
   cmd->add_flag("--quiet", o->quiet, "No summary line");
   cmd->callback([o] { run_fit(*o); });
 }

@@ -25,12 +25,25 @@ std::vector<double> bin_distribution(const Table& t, int b, double& total) {
   return p;
 }
 
-void check_alpha_bins(const std::vector<double>& edges, const Table& reference) {
-  if (edges.size() != reference.alpha_edges.size())
-    throw std::invalid_argument("alpha bins differ from the reference's (" + std::to_string(edges.size() - 1) +
-                                " vs " + std::to_string(reference.alpha_bins) + ")");
-  for (std::size_t i = 0; i < edges.size(); ++i)
-    if (std::abs(edges[i] - reference.alpha_edges[i]) > 1e-12) throw std::invalid_argument("alpha bin edges differ from the reference's");
+// The candidate's alpha bins must be the reference's or groups of f consecutive ones; returns f.
+int alpha_group_size(const std::vector<double>& edges, const Table& reference) {
+  const int bins = int(edges.size()) - 1;
+  if (bins < 1 || reference.alpha_bins % bins != 0)
+    throw std::invalid_argument("alpha bins (" + std::to_string(bins) + ") are neither the reference's (" +
+                                std::to_string(reference.alpha_bins) + ") nor groups of them");
+  const int f = reference.alpha_bins / bins;
+  for (int j = 0; j <= bins; ++j)
+    if (std::abs(edges[j] - reference.alpha_edges[std::size_t(j) * f]) > 1e-12)
+      throw std::invalid_argument("alpha bin edges are not edges of the reference's");
+  return f;
+}
+
+// The share of reference bin b in the probability of the candidate's bin (b / f): its area
+// on the unit sphere, since a sampler spreads alpha uniformly in cos(alpha) within a bin.
+double area_share(const Table& reference, int b, int f) {
+  auto area = [&](int lo, int hi) { return std::cos(reference.alpha_edges[lo]) - std::cos(reference.alpha_edges[hi]); };
+  const int j = b / f;
+  return area(b, b + 1) / area(j * f, (j + 1) * f);
 }
 
 BinError compare(const std::vector<double>& p, const std::vector<double>& q) {
@@ -42,21 +55,24 @@ BinError compare(const std::vector<double>& p, const std::vector<double>& q) {
   return e;
 }
 
-// Weighted totals over bins by the reference's alpha marginal.
+// Weighted totals over bins by the reference's alpha marginal; `candidate(b)` gives the
+// candidate's probability of reference bin b and its cell distribution there.
 template <typename CandidateBin>
 Evaluation evaluate_bins(const Table& reference, CandidateBin candidate) {
   Evaluation ev;
   std::vector<double> mass(reference.alpha_bins);
+  std::vector<std::vector<double>> q(reference.alpha_bins);
   double total = 0;
   for (int b = 0; b < reference.alpha_bins; ++b) {
-    std::vector<double> q = bin_distribution(reference, b, mass[b]);
+    q[b] = bin_distribution(reference, b, mass[b]);
     total += mass[b];
-    BinError e = mass[b] > 0 ? compare(candidate(b), q) : BinError{};
-    ev.per_alpha.push_back(e);
   }
   for (int b = 0; b < reference.alpha_bins; ++b) {
-    BinError& e = ev.per_alpha[b];
+    auto [probability, p] = candidate(b);
+    BinError e = mass[b] > 0 ? compare(p, q[b]) : BinError{};
     e.weight = total > 0 ? mass[b] / total : 0;
+    for (std::size_t c = 0; c < p.size(); ++c) ev.joint_tv += 0.5 * std::abs(probability * p[c] - e.weight * q[b][c]);
+    ev.per_alpha.push_back(e);
     if (e.weight == 0) continue;
     ev.tv += e.weight * e.tv;
     ev.kl += e.weight * e.kl;
@@ -78,10 +94,14 @@ std::vector<double> model_cell_probabilities(const StfModel& m, int b, const Qua
 }
 
 Evaluation evaluate(const StfModel& m, const Table& reference, const std::vector<double>& chi2_dof) {
-  check_alpha_bins(m.alpha_edges, reference);
+  const int f = alpha_group_size(m.alpha_edges, reference);
   std::unique_ptr<DirectionGrid> grid = make_grid(reference.grid);
   const QuadratureLevels levels(*grid);
-  Evaluation ev = evaluate_bins(reference, [&](int b) { return model_cell_probabilities(m, b, levels); });
+  std::vector<double> p;  // of the current model bin
+  Evaluation ev = evaluate_bins(reference, [&](int b) {
+    if (b % f == 0) p = model_cell_probabilities(m, b / f, levels);
+    return std::pair(m.alpha_probability[b / f] * area_share(reference, b, f), p);
+  });
   if (chi2_dof.size() == ev.per_alpha.size()) {
     ev.chi2_dof = 0;
     for (std::size_t b = 0; b < chi2_dof.size(); ++b) {
@@ -95,12 +115,17 @@ Evaluation evaluate(const StfModel& m, const Table& reference, const std::vector
 }
 
 Evaluation evaluate(const Table& candidate, const Table& reference) {
-  check_alpha_bins(candidate.alpha_edges, reference);
+  if (alpha_group_size(candidate.alpha_edges, reference) != 1)
+    throw std::invalid_argument("alpha bins differ from the reference's (" + std::to_string(candidate.alpha_bins) +
+                                " vs " + std::to_string(reference.alpha_bins) + ")");
   if (candidate.grid != reference.grid)
     throw std::invalid_argument("grid " + candidate.grid + " differs from the reference's " + reference.grid);
+  double escaped = 0;
+  for (double w : candidate.weight()) escaped += w;
   Evaluation ev = evaluate_bins(reference, [&](int b) {
     double n;
-    return bin_distribution(candidate, b, n);
+    std::vector<double> p = bin_distribution(candidate, b, n);
+    return std::pair(escaped > 0 ? n / escaped : 0.0, p);
   });
   ev.table_bytes = std::int64_t(candidate.alpha_bins) * candidate.cells * 4;
   return ev;
@@ -119,7 +144,7 @@ std::string number(double v) {
 
 std::string to_json(const Evaluation& e) {
   std::ostringstream s;
-  s << "{\n  \"tv_distance\": " << number(e.tv) << ",\n  \"kl_divergence\": " << number(e.kl)
+  s << "{\n  \"tv_distance\": " << number(e.tv) << ",\n  \"joint_tv_distance\": " << number(e.joint_tv) << ",\n  \"kl_divergence\": " << number(e.kl)
     << ",\n  \"chi2_dof\": " << (e.chi2_dof >= 0 ? number(e.chi2_dof) : "null")
     << ",\n  \"model_bytes\": " << (e.model_bytes >= 0 ? std::to_string(e.model_bytes) : "null")
     << ",\n  \"table_bytes\": " << e.table_bytes << ",\n  \"per_alpha\": [\n";

@@ -22,6 +22,9 @@ struct BinError {
 struct Evaluation {
   std::vector<BinError> per_alpha;
   double tv = 0, kl = 0;  // weighted by the reference's alpha marginal
+  // TV of the joint (alpha bin, cell) exit distributions: also counts the alpha marginal's
+  // error; what a tolerance (fit/tolerance.h) bounds.
+  double joint_tv = 0;
   double chi2_dof = -1;   // weighted likewise (models only)
   std::int64_t model_bytes = -1;  // models: packed size
   std::int64_t table_bytes = 0;   // the thesis's raw layout of the evaluated grid: bins * cells * 4
@@ -31,7 +34,9 @@ struct Evaluation {
 // whose quadratures `levels` holds (build them once for all bins).
 std::vector<double> model_cell_probabilities(const StfModel& model, int bin, const QuadratureLevels& levels);
 
-// Throws std::invalid_argument when the alpha bins (or, for tables, the grids) differ.
+// A model's alpha bins may be groups of the reference's (a tolerance fit's): each reference
+// bin is then compared with the model bin holding it. Throws std::invalid_argument when the
+// alpha bins do not match that way (or, for tables, differ, or the grids differ).
 Evaluation evaluate(const StfModel& model, const Table& reference, const std::vector<double>& chi2_dof = {});
 Evaluation evaluate(const Table& candidate, const Table& reference);
 

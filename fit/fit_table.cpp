@@ -11,6 +11,7 @@
 
 #include "cell_probability.h"
 #include "grid.h"
+#include "parallel.h"
 #include "sh_fit.h"
 #include "stf/sh.h"
 #include "vmf_fit.h"
@@ -58,23 +59,6 @@ double sum(const std::vector<double>& v) {
   double s = 0;
   for (double x : v) s += x;
   return s;
-}
-
-// Runs f(bin) for every bin over the settings' threads, until cancelled. Bins are
-// independent, so the result does not depend on the thread count.
-template <typename F>
-void for_each_bin(int bins, const FitSettings& s, F f) {
-  int threads = s.threads > 0 ? s.threads : int(std::max(1u, std::thread::hardware_concurrency()));
-  std::atomic<int> next{0};
-  std::vector<std::thread> pool;
-  for (int t = 0; t < std::min(threads, bins); ++t)
-    pool.emplace_back([&] {
-      for (int b; (b = next.fetch_add(1)) < bins;) {
-        if (s.cancel && s.cancel->load(std::memory_order_relaxed)) break;
-        f(b);
-      }
-    });
-  for (auto& th : pool) th.join();
 }
 
 // Bins whose status is kBorrowed take the parameters of the nearest fitted bin (the lower

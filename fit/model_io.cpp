@@ -43,6 +43,13 @@ void write_model(const StfModel& m, const FitReport& r, const Provenance& p, con
       put_attr(file, "source_generator", p.table->generator);
       put_attr(file, "source_table_bytes", std::int64_t(p.table->alpha_bins) * p.table->cells * 4);
     }
+    if (p.tolerance > 0) {
+      put_attr(file, "tolerance", p.tolerance);
+      put_attr(file, "tv_bound", p.tv_bound);
+      put_attr(file, "tolerance_met", int(p.tolerance_met));
+      put_attr(file, "heldout_table", p.heldout_table);
+      put_attr(file, "heldout_paths", p.heldout_paths);
+    }
 
     const hsize_t bins = hsize_t(m.bins());
     H5::Group alpha = file.createGroup("/alpha");
@@ -153,6 +160,28 @@ StfModel read_model(const std::string& path) {
   } catch (const H5::Exception& e) {
     throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());
   }
+}
+
+ModelSummary read_model_summary(const std::string& path) {
+  StfModel m = read_model(path);
+  ModelSummary s;
+  s.kind = m.kind == ModelKind::kVmf ? "vmf" : "sh";
+  s.size = m.kind == ModelKind::kVmf ? m.lobes : m.band_limit;
+  s.alpha_bins = m.bins();
+  s.bytes = m.packed_bytes();
+  try {
+    H5::H5File file(path, H5F_ACC_RDONLY);
+    if (has_attr(file, "source_grid")) s.grid = get_string(file, "source_grid");
+    if (has_attr(file, "source_paths")) s.paths = get_int64(file, "source_paths");
+    if (has_attr(file, "tolerance")) {
+      s.tolerance = get_double(file, "tolerance");
+      s.tv_bound = get_double(file, "tv_bound");
+      s.tolerance_met = get_int(file, "tolerance_met") != 0;
+    }
+  } catch (const H5::Exception& e) {
+    throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());
+  }
+  return s;
 }
 
 std::vector<double> read_chi2_dof(const std::string& path) {

@@ -14,12 +14,31 @@ struct Provenance {
   std::string model_spec;  // as given to --model
   std::string source_table;
   const Table* table = nullptr;  // its attributes are copied (paths, seed, grid, generator)
+  // Fits to a tolerance (fit/tolerance.h): the target, the certified bound and the table
+  // that certified it; tolerance <= 0 when the fit had none.
+  double tolerance = 0, tv_bound = 0;
+  bool tolerance_met = false;
+  std::string heldout_table;
+  std::int64_t heldout_paths = 0;
+};
+
+// What a model file says about its resolution, for plans and reports.
+struct ModelSummary {
+  std::string kind;       // "vmf" or "sh"
+  int size = 0;           // lobes or band limit
+  int alpha_bins = 0;
+  std::string grid;       // of the table it was fitted to
+  std::int64_t paths = 0; // of that table
+  std::int64_t bytes = 0; // packed
+  double tolerance = 0, tv_bound = 0;  // tolerance <= 0: none
+  bool tolerance_met = false;
 };
 
 void write_model(const StfModel& model, const FitReport& report, const Provenance& provenance,
                  const std::string& path);
 // Reads a model written by write_model (format_version 1); the SH tables are rebuilt.
 StfModel read_model(const std::string& path);
+ModelSummary read_model_summary(const std::string& path);
 // The per-bin chi^2 / dof of a model against the table it was fitted to.
 std::vector<double> read_chi2_dof(const std::string& path);
 // The "format" attribute of an stf HDF5 file ("stf-table", "stf-model"), or "" if none.

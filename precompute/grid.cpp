@@ -72,6 +72,21 @@ CscGrid::~CscGrid() = default;
 
 std::string CscGrid::spec() const { return "csc:" + std::to_string(n_); }
 
+// Face coordinates are uniform in cells, so halving N merges 2 x 2 blocks of rows and columns.
+std::string CscGrid::coarser(int levels) const {
+  return levels >= 0 && n_ % (1 << levels) == 0 ? "csc:" + std::to_string(n_ >> levels) : "";
+}
+
+std::vector<std::int64_t> CscGrid::parents(int levels) const {
+  std::vector<std::int64_t> out(cell_count());
+  const std::int64_t n = n_ >> levels;
+  for (std::int64_t c = 0; c < cell_count(); ++c) {
+    const std::int64_t face = c / (std::int64_t(n_) * n_), row = c / n_ % n_, col = c % n_;
+    out[c] = (face * n + (row >> levels)) * n + (col >> levels);
+  }
+  return out;
+}
+
 void CscGrid::face_offset(int face, double& x0, double& y0) {
   static constexpr double kX[6] = {0, 0, 90, 180, 270, 0};
   static constexpr double kY[6] = {90, 0, 0, 0, 0, -90};
@@ -187,6 +202,18 @@ HealpixGrid::HealpixGrid(int nside)
 HealpixGrid::~HealpixGrid() = default;
 
 std::string HealpixGrid::spec() const { return "healpix:" + std::to_string(nside_); }
+
+std::string HealpixGrid::coarser(int levels) const {
+  return levels >= 0 && nside_ % (1 << levels) == 0 ? "healpix:" + std::to_string(nside_ >> levels) : "";
+}
+
+// In the NESTED scheme the 4^levels children of a cell are consecutive.
+std::vector<std::int64_t> HealpixGrid::parents(int levels) const {
+  T_Healpix_Base<int64> coarse(nside_ >> levels, NEST, SET_NSIDE);
+  std::vector<std::int64_t> out(cell_count());
+  for (std::int64_t c = 0; c < cell_count(); ++c) out[c] = coarse.nest2ring(base_->base.ring2nest(c) >> (2 * levels));
+  return out;
+}
 
 std::int64_t HealpixGrid::cell(const Vec3& d) const {
   std::int64_t pix;

@@ -38,6 +38,11 @@ class DirectionGrid {
   virtual std::vector<double> solid_angles() const = 0;
   // Each cell split 2^level times along each side: for integrating a density over cells.
   virtual CellQuadrature quadrature(int level) const = 0;
+  // The grid whose cells are unions of 4^levels of these cells (HEALPix NSIDE or the cube's
+  // N halved `levels` times), or "" when the resolution does not halve that often.
+  virtual std::string coarser(int levels) const = 0;
+  // For every cell, the cell of coarser(levels) that holds it.
+  virtual std::vector<std::int64_t> parents(int levels) const = 0;
 };
 
 // Parses "csc:N" (1 <= N <= 1024) or "healpix:NSIDE" (a power of two, 1 <= NSIDE <= 8192).
@@ -57,6 +62,8 @@ class CscGrid final : public DirectionGrid {
   Vec3 centre(std::int64_t cell) const override;
   std::vector<double> solid_angles() const override;
   CellQuadrature quadrature(int level) const override;
+  std::string coarser(int levels) const override;
+  std::vector<std::int64_t> parents(int levels) const override;
 
   int n() const { return n_; }
   // Centre of `face` in WCSLIB's projection plane, in degrees.
@@ -87,6 +94,8 @@ class HealpixGrid final : public DirectionGrid {
   Vec3 centre(std::int64_t cell) const override;
   std::vector<double> solid_angles() const override;
   CellQuadrature quadrature(int level) const override;
+  std::string coarser(int levels) const override;
+  std::vector<std::int64_t> parents(int levels) const override;
   int nside() const { return nside_; }
 
  private:

@@ -4,11 +4,16 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
+#include <memory>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <stdexcept>
 
 #include "fit_table.h"
+#include "grid.h"
+#include "tolerance.h"
 #include "model_io.h"
 #include "precompute.h"
 #include "stf/pack.h"
@@ -33,26 +38,77 @@ void write_atomically(const std::string& path, Write write) {
   }
 }
 
-void compute(const Plan& plan, const PlanEntry& e, int threads, const std::atomic<bool>* cancel) {
-  const Settings& s = plan.settings;
+[[noreturn]] void interrupted() { throw std::runtime_error("interrupted; finished entries stay in the cache"); }
+
+// A table of the entry's medium in the unit sphere.
+Table walk(const PlanEntry& e, const Settings& s, std::int64_t paths, std::int64_t seed, int threads,
+           const std::atomic<bool>* cancel) {
   PrecomputeSettings ps;
-  ps.paths = s.paths;
+  ps.paths = paths;
   ps.grid = s.grid;
   ps.alpha_bins = s.alpha_bins;
-  ps.seed = s.seed;
+  ps.seed = seed;
   ps.threads = threads;
   std::optional<Table> table = precompute({e.albedo * e.tau, (1 - e.albedo) * e.tau, e.g, 1}, ps, cancel);
-  if (!table) throw std::runtime_error("interrupted; finished entries stay in the cache");
-  write_atomically(table_path(plan, e), [&](const std::string& p) { write_table(*table, p); });
+  if (!table) interrupted();
+  return std::move(*table);
+}
+
+void store(const Plan& plan, const PlanEntry& e, const Table& table, const StfModel& model, const fit::FitReport& report,
+           fit::Provenance provenance) {
+  write_atomically(table_path(plan, e), [&](const std::string& p) { write_table(table, p); });
+  provenance.source_table = table_path(plan, e);
+  write_atomically(model_path(plan, e), [&](const std::string& p) { fit::write_model(model, report, provenance, p); });
+}
+
+// Paths of the first round: the certificate's own noise, 0.5 sqrt(2 sd(chi^2)) with
+// sd ~ sqrt(2 cells) / paths over all (alpha bin, cell) pairs, is then about a quarter of the
+// tolerance; fewer paths could not certify it whatever the model.
+std::int64_t first_round_paths(const Settings& s) {
+  std::unique_ptr<DirectionGrid> grid = make_grid(s.grid);
+  const double cells = double(s.alpha_bins) * double(grid->cell_count());
+  const double paths = 8 * std::sqrt(2 * cells) / (s.tolerance * s.tolerance);
+  return std::clamp(std::int64_t(std::ceil(paths / 1e4)) * 10'000, std::int64_t(10'000), s.paths);
+}
+
+// Rounds of paths, fourfold up to the settings' paths, until a fit is certified within the
+// tolerance on a second table (seed + 1) or more paths stop helping; the last round's best is
+// kept either way, marked in the model file.
+void compute_to_tolerance(const Plan& plan, const PlanEntry& e, const fit::FitSettings& fs, int threads,
+                          const std::atomic<bool>* cancel) {
+  const Settings& s = plan.settings;
+  double previous_bound = std::numeric_limits<double>::infinity();
+  for (std::int64_t paths = first_round_paths(s);; paths = std::min(s.paths, 4 * paths)) {
+    Table table = walk(e, s, paths, s.seed, threads, cancel), heldout = walk(e, s, paths, s.seed + 1, threads, cancel);
+    fit::ToleranceFit r = fit::fit_to_tolerance(table, heldout, s.tolerance, fs);
+    if (cancel && *cancel) interrupted();
+    // Four times the paths halve the noise in the bound; a round that gains under 10% is
+    // held back by what the model kind cannot represent, and more paths will not help.
+    const bool stalled = r.certificate.tv_bound > 0.9 * previous_bound;
+    previous_bound = r.certificate.tv_bound;
+    if (!r.met && !stalled && paths < s.paths) continue;
+    fit::Provenance provenance;
+    provenance.model_spec = s.model, provenance.table = &r.fitted;
+    provenance.tolerance = s.tolerance, provenance.tv_bound = r.certificate.tv_bound, provenance.tolerance_met = r.met;
+    provenance.heldout_table = "seed " + std::to_string(s.seed + 1) + " (not kept)", provenance.heldout_paths = heldout.paths;
+    store(plan, e, table, r.model, r.report, provenance);
+    return;
+  }
+}
+
+void compute(const Plan& plan, const PlanEntry& e, int threads, const std::atomic<bool>* cancel) {
+  const Settings& s = plan.settings;
   fit::FitSettings fs = fit::parse_model_spec(s.model);
   fs.threads = threads;
   fs.cancel = cancel;
+  if (s.tolerance > 0) return compute_to_tolerance(plan, e, fs, threads, cancel);
+  Table table = walk(e, s, s.paths, s.seed, threads, cancel);
   fit::FitReport report;
-  StfModel model = fit::fit_table(*table, fs, &report);
-  if (cancel && *cancel) throw std::runtime_error("interrupted; finished entries stay in the cache");
-  write_atomically(model_path(plan, e), [&](const std::string& p) {
-    fit::write_model(model, report, {s.model, table_path(plan, e), &*table}, p);
-  });
+  StfModel model = fit::fit_table(table, fs, &report);
+  if (cancel && *cancel) interrupted();
+  fit::Provenance provenance;
+  provenance.model_spec = s.model, provenance.table = &table;
+  store(plan, e, table, model, report, provenance);
 }
 
 }  // namespace

@@ -8,6 +8,8 @@
 #include <sstream>
 #include <tuple>
 
+#include "model_io.h"
+
 namespace stf::scene {
 
 namespace {
@@ -21,7 +23,8 @@ std::string fmt(double v) {
 std::string cache_key(const Settings& s, double tau, double albedo, double g) {
   std::string text = "stf " STF_VERSION ";tau=" + fmt(tau) + ";albedo=" + fmt(albedo) + ";g=" + fmt(g) +
                      ";paths=" + std::to_string(s.paths) + ";grid=" + s.grid + ";bins=" + std::to_string(s.alpha_bins) +
-                     ";model=" + s.model + ";seed=" + std::to_string(s.seed);
+                     ";model=" + s.model + ";seed=" + std::to_string(s.seed) +
+                     (s.tolerance > 0 ? ";tolerance=" + fmt(s.tolerance) : "");
   std::uint64_t h = 0xcbf29ce484222325ull;
   for (unsigned char c : text) h = (h ^ c) * 0x100000001b3ull;
   char buf[17];
@@ -32,6 +35,36 @@ std::string cache_key(const Settings& s, double tau, double albedo, double g) {
 bool exists(const std::string& path) {
   struct stat st;
   return ::stat(path.c_str(), &st) == 0;
+}
+
+Resolution from_settings(const Settings& s) {
+  Resolution r;
+  r.grid = s.grid, r.alpha_bins = s.alpha_bins, r.model = s.model, r.paths = s.paths;
+  return r;
+}
+
+Resolution from_fit(const std::string& model_file) {
+  fit::ModelSummary m = fit::read_model_summary(model_file);
+  Resolution r;
+  r.grid = m.grid, r.alpha_bins = m.alpha_bins, r.model = m.kind + ":" + std::to_string(m.size), r.paths = m.paths;
+  r.bytes = m.bytes;
+  if (m.tolerance > 0) r.tv_bound = m.tv_bound, r.tolerance_met = m.tolerance_met;
+  r.measured = true;
+  return r;
+}
+
+std::string resolution_text(const Resolution& r, const Settings& s) {
+  char buf[256];
+  if (!r.measured)
+    std::snprintf(buf, sizeof buf, s.tolerance > 0 ? "up to %s, %d bins, %s, %.3g paths" : "%s, %d bins, %s, %.3g paths",
+                  r.grid.c_str(), r.alpha_bins, r.model.c_str(), double(r.paths));
+  else if (r.tv_bound >= 0)
+    std::snprintf(buf, sizeof buf, "%s, %d bins, %s, %.3g paths, TV <= %.3g%s", r.grid.c_str(), r.alpha_bins,
+                  r.model.c_str(), double(r.paths), r.tv_bound, r.tolerance_met ? "" : " (tolerance NOT met)");
+  else
+    std::snprintf(buf, sizeof buf, "%s, %d bins, %s, %.3g paths", r.grid.c_str(), r.alpha_bins, r.model.c_str(),
+                  double(r.paths));
+  return buf;
 }
 
 }  // namespace
@@ -52,7 +85,7 @@ Plan make_plan(const Scene& scene, const std::string& cache_dir) {
       plan.entries.push_back({tau_max, albedo, m.g, {m.name}, "skip",
                               "largest optical radius " + fmt(tau_max) + " is below tau_skip " + fmt(s.tau_skip) +
                                   ": the renderer tracks this medium directly",
-                              ""});
+                              "", {}});
       continue;
     }
     // The family member at or below tau_min (but not below tau_skip), then up to tau_max.
@@ -65,8 +98,10 @@ Plan make_plan(const Scene& scene, const std::string& cache_dir) {
         plan.entries[it->second].media.push_back(m.name);
         continue;
       }
-      PlanEntry e{tau, albedo, m.g, {m.name}, "compute", "", cache_key(s, tau, albedo, m.g)};
+      PlanEntry e{tau, albedo, m.g, {m.name}, "compute", "", cache_key(s, tau, albedo, m.g), {}};
+      e.resolution = from_settings(s);
       if (exists(model_path(plan, e))) {
+        e.resolution = from_fit(model_path(plan, e));
         e.action = "cached";
         e.reason = "a table and fit with the same inputs and settings are in the cache";
       } else {
@@ -84,7 +119,8 @@ Plan make_plan(const Scene& scene, const std::string& cache_dir) {
 
 std::string plan_json(const Plan& plan) {
   std::ostringstream s;
-  s << "{\n  \"settings\": {\"paths\": " << plan.settings.paths << ", \"grid\": \"" << plan.settings.grid
+  s << "{\n  \"settings\": {\"paths\": " << plan.settings.paths << ", \"tolerance\": "
+    << (plan.settings.tolerance > 0 ? fmt(plan.settings.tolerance) : "null") << ", \"grid\": \"" << plan.settings.grid
     << "\", \"alpha_bins\": " << plan.settings.alpha_bins << ", \"model\": \"" << plan.settings.model
     << "\", \"tau_skip\": " << fmt(plan.settings.tau_skip) << ", \"tau_ratio\": " << fmt(plan.settings.tau_ratio)
     << "},\n  \"entries\": [\n";
@@ -93,7 +129,15 @@ std::string plan_json(const Plan& plan) {
     s << "    {\"tau\": " << fmt(e.tau) << ", \"albedo\": " << fmt(e.albedo) << ", \"g\": " << fmt(e.g)
       << ", \"action\": \"" << e.action << "\", \"reason\": \"" << e.reason << "\", \"media\": [";
     for (std::size_t j = 0; j < e.media.size(); ++j) s << (j ? ", " : "") << "\"" << e.media[j] << "\"";
-    s << "]" << (e.key.empty() ? "" : ", \"key\": \"" + e.key + "\"") << "}" << (i + 1 < plan.entries.size() ? ",\n" : "\n");
+    s << "]";
+    if (!e.key.empty()) {
+      const Resolution& r = e.resolution;
+      s << ", \"key\": \"" << e.key << "\",\n     \"resolution\": {\"chosen\": " << (r.measured ? "true" : "false")
+        << ", \"grid\": \"" << r.grid << "\", \"alpha_bins\": " << r.alpha_bins << ", \"model\": \"" << r.model
+        << "\", \"paths\": " << r.paths << ", \"model_bytes\": " << r.bytes
+        << ", \"tv_bound\": " << (r.tv_bound >= 0 ? fmt(r.tv_bound) : "null") << "}";
+    }
+    s << "}" << (i + 1 < plan.entries.size() ? ",\n" : "\n");
   }
   s << "  ]\n}\n";
   return s.str();
@@ -102,7 +146,8 @@ std::string plan_json(const Plan& plan) {
 std::string plan_table(const Plan& plan) {
   std::ostringstream s;
   char line[512];
-  std::snprintf(line, sizeof line, "%-9s %-10s %-9s %-9s %-24s %s\n", "action", "tau", "albedo", "g", "media", "reason");
+  std::snprintf(line, sizeof line, "%-9s %-10s %-9s %-9s %-24s %s\n", "action", "tau", "albedo", "g", "media",
+                "reason / resolution");
   s << line;
   for (const PlanEntry& e : plan.entries) {
     std::string media;
@@ -110,6 +155,7 @@ std::string plan_table(const Plan& plan) {
     std::snprintf(line, sizeof line, "%-9s %-10.4g %-9.4g %-9.4g %-24s %s\n", e.action.c_str(), e.tau, e.albedo, e.g,
                   media.c_str(), e.reason.c_str());
     s << line;
+    if (!e.key.empty()) s << std::string(64, ' ') << resolution_text(e.resolution, plan.settings) << "\n";
   }
   return s.str();
 }

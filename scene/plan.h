@@ -8,6 +8,10 @@
 // albedo, g) share an entry (media differing only by scale); a medium whose largest tau is
 // below tau_skip gets none (stepping through shells does not pay off: the renderer tracks it
 // directly). Entries are cached under a key of every input and setting.
+//
+// With a tolerance, each entry's alpha bins, direction grid, model size and paths are the
+// least that a certified bound puts within it (fit/tolerance.h), found while computing; the
+// plan lists the settings as upper limits until the entry is cached, then what it chose.
 #pragma once
 
 #include <string>
@@ -17,12 +21,26 @@
 
 namespace stf::scene {
 
+// What an entry is computed at: the settings (upper limits under a tolerance) until its fit
+// is in the cache, then what that fit used.
+struct Resolution {
+  std::string grid;
+  int alpha_bins = 0;
+  std::string model;       // "vmf:4", "sh:8"; "vmf:auto" etc. before a fit chose
+  std::int64_t paths = 0;  // per table
+  std::int64_t bytes = 0;  // packed model; 0 before the fit
+  double tv_bound = -1;    // certified TV bound under a tolerance; -1 when none
+  bool tolerance_met = false;
+  bool measured = false;   // read from the cached fit
+};
+
 struct PlanEntry {
   double tau = 0, albedo = 0, g = 0;
   std::vector<std::string> media;
   std::string action;  // "compute", "cached" or "skip"
   std::string reason;
   std::string key;     // cache key; empty for skipped media
+  Resolution resolution;
 };
 
 struct Plan {

@@ -58,7 +58,7 @@ void expect(bool ok, const toml::value& v, const std::string& message) {
 
 Settings read_settings(const toml::value& t) {
   Settings s;
-  check_keys(t, "settings.", {"paths", "grid", "alpha_bins", "model", "seed", "tau_skip", "tau_ratio"});
+  check_keys(t, "settings.", {"paths", "grid", "alpha_bins", "model", "seed", "tau_skip", "tau_ratio", "tolerance"});
   if (t.contains("paths")) {
     double p = number(t.at("paths"), "settings.paths");
     expect(p >= 1 && p <= 1e12 && p == std::floor(p), t.at("paths"), "settings.paths: must be a whole number in 1..1e12");
@@ -89,6 +89,10 @@ Settings read_settings(const toml::value& t) {
   if (t.contains("tau_skip")) {
     s.tau_skip = number(t.at("tau_skip"), "settings.tau_skip");
     expect(s.tau_skip > 0 && std::isfinite(s.tau_skip), t.at("tau_skip"), "settings.tau_skip: must be > 0");
+  }
+  if (t.contains("tolerance")) {
+    s.tolerance = number(t.at("tolerance"), "settings.tolerance");
+    expect(s.tolerance > 0 && s.tolerance < 1, t.at("tolerance"), "settings.tolerance: must be a TV distance in (0, 1)");
   }
   if (t.contains("tau_ratio")) {
     s.tau_ratio = number(t.at("tau_ratio"), "settings.tau_ratio");

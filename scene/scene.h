@@ -8,6 +8,10 @@
 //   seed = 1
 //   tau_skip = 2.0             media whose largest optical radius is below this are skipped
 //   tau_ratio = 2.0            ratio between neighbouring optical radii of a medium's family
+//   tolerance = 0.1            target TV distance of each entry's exit distribution; with it,
+//                              paths, grid, alpha_bins and the model's size are upper limits
+//                              and each entry gets the least that is certified within it
+//                              (fit/tolerance.h; paths in rounds, fourfold each)
 //
 //   [[media]]
 //   name = "milk"
@@ -39,6 +43,7 @@ struct Settings {
   std::int64_t seed = 1;
   double tau_skip = 2;
   double tau_ratio = 2;
+  double tolerance = 0;  // 0: none; paths, grid, alpha_bins and model are used as given
 };
 
 struct Medium {

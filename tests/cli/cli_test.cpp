@@ -211,6 +211,24 @@ TEST_F(Cli, FitAndEvalProduceModelAndJson) {
   EXPECT_EQ(stf("eval " + out("t.h5") + " --reference " + out("ref.h5") + " --json " + out("raw.json")).status, 0);
 }
 
+// --tolerance: a certified model with fewer or equal alpha bins, evaluable against the
+// reference's bins, its bound and verdict stored with it.
+TEST_F(Cli, FitToToleranceCertifiesOnTheHeldOutTable) {
+  const std::string medium = "precompute --sigma-s 4 --sigma-a 0.01 --g 0.7 --alpha-bins 12 --grid healpix:4 --quiet ";
+  ASSERT_EQ(stf(medium + "--paths 1e5 -o " + out("t.h5")).status, 0);
+  ASSERT_EQ(stf(medium + "--paths 1e5 --seed 2 -o " + out("h.h5")).status, 0);
+  ASSERT_EQ(stf(medium + "--paths 1e6 --seed 3 -o " + out("ref.h5")).status, 0);
+  Result fit = stf("fit " + out("t.h5") + " --model vmf:auto --tolerance 0.3 --heldout " + out("h.h5") + " -o " + out("m.h5"));
+  ASSERT_EQ(fit.status, 0) << fit.err;
+  EXPECT_NE(fit.err.find("TV <="), std::string::npos) << fit.err;
+  EXPECT_NE(fit.err.find("(within 0.3)"), std::string::npos) << fit.err;
+  Result eval = stf("eval " + out("m.h5") + " --reference " + out("ref.h5") + " --json " + out("e.json"));
+  ASSERT_EQ(eval.status, 0) << eval.err;
+  std::ifstream json(out("e.json"));
+  std::string text((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("\"joint_tv_distance\""), std::string::npos);
+}
+
 TEST_F(Cli, FitAndEvalRejectBadInput) {
   ASSERT_EQ(stf("precompute " + kGood + " -o " + out("t.h5")).status, 0);
   ASSERT_EQ(stf("precompute --sigma-s 1 --sigma-a 0 --g 0 --alpha-bins 5 --grid healpix:2 --paths 100 --quiet -o " +
@@ -221,6 +239,10 @@ TEST_F(Cli, FitAndEvalRejectBadInput) {
       {"fit " + out("missing.h5") + " -o " + out("m.h5"), "missing.h5"},
       {"fit " + out("t.h5") + " -o /nonexistent-folder/m.h5", "-o"},
       {"eval " + out("t.h5") + " --reference " + out("other.h5"), "--reference"},
+      {"fit " + out("t.h5") + " --tolerance 0.1 -o " + out("m.h5"), "--heldout"},
+      {"fit " + out("t.h5") + " --tolerance 1.5 --heldout " + out("t.h5") + " -o " + out("m.h5"), "--tolerance"},
+      {"fit " + out("t.h5") + " --tolerance 0.1 --heldout " + out("t.h5") + " -o " + out("m.h5"), "--heldout"},
+      {"fit " + out("t.h5") + " --tolerance 0.1 --heldout " + out("other.h5") + " -o " + out("m.h5"), "--heldout"},
   };
   for (const BadInput& c : cases) {
     Result r = stf(c.args);

@@ -132,7 +132,9 @@ TEST(FitTable, StoreLoadRoundTripIsExact) {
     FitSettings settings = parse_model_spec(name.substr(0, name.find(' ')));
     if (name.find(' ') != std::string::npos) settings.alpha_degree = 5;
     StfModel m = fit_table(t, settings, &report);
-    write_model(m, report, {spec, "table.h5", &t}, path);
+    Provenance provenance;
+    provenance.model_spec = spec, provenance.source_table = "table.h5", provenance.table = &t;
+    write_model(m, report, provenance, path);
     StfModel r = read_model(path);
     EXPECT_EQ(r.alpha_probability, m.alpha_probability);
     EXPECT_EQ(r.alpha_edges, m.alpha_edges);

@@ -74,6 +74,7 @@ TEST_F(SceneTest, BadScenesNameFileLineAndKey) {
       {"[settings]\npaths = 0\n[[media]]\nname = \"m\"\nsigma_s = 1.0\nsigma_a = 0.0\ng = 0.1\nsize = 1.0\n", "paths", 2},
       {"[settings]\ngrid = \"hex:3\"\n[[media]]\nname = \"m\"\nsigma_s = 1.0\nsigma_a = 0.0\ng = 0.1\nsize = 1.0\n", "grid", 2},
       {"[[media]]\nname = \"m\"\nsigma_s = 1.0\nsigma_a = 0.0\ng = 0.1\nradius_min = 2.0\nradius_max = 1.0\n", "radius", 7},
+      {"[settings]\ntolerance = 1.5\n[[media]]\nname = \"m\"\nsigma_s = 1.0\nsigma_a = 0.0\ng = 0.1\nsize = 1.0\n", "tolerance", 2},
   };
   for (const Case& c : cases) {
     std::string path = write("bad.toml", c.text);
@@ -132,6 +133,37 @@ TEST_F(SceneTest, SecondBuildComputesNothingAndEditsRecomputeOnlyWhatChanged) {
   for (const PlanEntry& e : plan.entries) cached += e.action == "cached";
   EXPECT_EQ(cached, 3);
   EXPECT_EQ(build(scene, plan, pack, 2), 3);
+}
+
+// Under a tolerance the settings are limits: each entry is computed at what its certificate
+// needs, and the plan of the built scene shows that, within the limits and the tolerance.
+TEST_F(SceneTest, ToleranceChoosesEachEntrysResolutionWithinTheLimits) {
+  const std::string cache = (dir_ / "cache").string(), pack = (dir_ / "s.stfpack").string();
+  std::string text = kTiny;
+  text.replace(text.find("paths = 3000"), 12, "paths = 2e5\ntolerance = 0.25");
+  text.replace(text.find("grid = \"healpix:2\""), 18, "grid = \"healpix:4\"");
+  text.replace(text.find("alpha_bins = 6"), 14, "alpha_bins = 12");
+  text.replace(text.find("vmf:1"), 5, "vmf:auto");
+  Scene scene = read_scene(write("s.toml", text));
+  Plan before = make_plan(scene, cache);
+  for (const PlanEntry& e : before.entries)
+    if (e.action == "compute") EXPECT_FALSE(e.resolution.measured);
+  EXPECT_EQ(build(scene, before, pack, 2), 3);
+  Plan after = make_plan(scene, cache);
+  for (const PlanEntry& e : after.entries) {
+    if (e.action == "skip") continue;
+    EXPECT_EQ(e.action, "cached");
+    const Resolution& r = e.resolution;
+    EXPECT_TRUE(r.measured);
+    EXPECT_LE(r.alpha_bins, 12);
+    EXPECT_EQ(12 % r.alpha_bins, 0);
+    EXPECT_LE(r.paths, 200000);
+    EXPECT_TRUE(r.tolerance_met) << "tau " << e.tau;
+    EXPECT_GE(r.tv_bound, 0);
+    EXPECT_LE(r.tv_bound, 0.25);
+    EXPECT_GT(r.bytes, 0);
+  }
+  EXPECT_NE(plan_json(after).find("\"resolution\": {\"chosen\": true"), std::string::npos);
 }
 
 TEST_F(SceneTest, LookupPicksTheLargestSphereThatFits) {

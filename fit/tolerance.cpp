@@ -1,0 +1,212 @@
+#include "tolerance.h"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+
+#include "evaluate.h"
+#include "grid.h"
+#include "parallel.h"
+#include "vmf_fit.h"
+
+namespace stf::fit {
+
+namespace {
+
+// Where each (alpha bin, cell) of a table goes when coarsened, and its share of that group:
+// the bin's share of the group's area on the unit sphere times the cell's share of its
+// parent's solid angle.
+struct Coarsening {
+  std::string grid;                  // the coarse grid
+  std::int64_t cells = 0;            // its cell count
+  std::vector<std::int64_t> parent;  // [cells] fine cell -> coarse cell
+  std::vector<double> parent_solid_angle;
+  std::vector<std::int64_t> group;   // [alpha_bins * cells] -> coarse (bin, cell)
+  std::vector<double> share;         // [alpha_bins * cells]
+};
+
+double band_area(const std::vector<double>& edges, int lo, int hi) { return std::cos(edges[lo]) - std::cos(edges[hi]); }
+
+Coarsening make_coarsening(const Table& t, int f, int levels) {
+  if (f < 1 || t.alpha_bins % f != 0)
+    throw std::invalid_argument("alpha factor " + std::to_string(f) + " does not divide " + std::to_string(t.alpha_bins) + " bins");
+  std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
+  Coarsening k;
+  k.grid = grid->coarser(levels);
+  if (k.grid.empty()) throw std::invalid_argument(t.grid + " cannot be halved " + std::to_string(levels) + " times");
+  k.cells = t.cells >> (2 * levels);
+  k.parent = grid->parents(levels);
+  k.parent_solid_angle.assign(k.cells, 0.0);
+  for (std::int64_t c = 0; c < t.cells; ++c) k.parent_solid_angle[k.parent[c]] += t.solid_angle[c];
+  k.group.resize(std::size_t(t.alpha_bins) * t.cells);
+  k.share.resize(k.group.size());
+  for (int a = 0; a < t.alpha_bins; ++a) {
+    const int j = a / f;
+    const double alpha_share = band_area(t.alpha_edges, a, a + 1) / band_area(t.alpha_edges, j * f, (j + 1) * f);
+    for (std::int64_t c = 0; c < t.cells; ++c) {
+      const std::size_t i = std::size_t(a) * t.cells + c;
+      k.group[i] = std::int64_t(j) * k.cells + k.parent[c];
+      k.share[i] = alpha_share * t.solid_angle[c] / k.parent_solid_angle[k.parent[c]];
+    }
+  }
+  return k;
+}
+
+std::vector<double> normalised(std::vector<double> y) {
+  double total = 0;
+  for (double v : y) total += v;
+  if (total > 0)
+    for (double& v : y) v /= total;
+  return y;
+}
+
+// The exit distribution given escape, over (alpha bin, cell).
+std::vector<double> exit_distribution(const Table& t) { return normalised(t.weight()); }
+
+std::vector<double> group_sums(const std::vector<double>& y, const Coarsening& k, std::size_t groups) {
+  std::vector<double> g(groups, 0.0);
+  for (std::size_t i = 0; i < y.size(); ++i) g[k.group[i]] += y[i];
+  return g;
+}
+
+}  // namespace
+
+Table coarsen_table(const Table& t, int f, int levels) {
+  const Coarsening k = make_coarsening(t, f, levels);
+  Table c = t;
+  c.grid = k.grid;
+  c.alpha_bins = t.alpha_bins / f;
+  c.cells = k.cells;
+  c.alpha_edges.clear();
+  for (int j = 0; j <= c.alpha_bins; ++j) c.alpha_edges.push_back(t.alpha_edges[std::size_t(j) * f]);
+  std::unique_ptr<DirectionGrid> grid = make_grid(k.grid);
+  c.direction.resize(k.cells);
+  for (std::int64_t i = 0; i < k.cells; ++i) {
+    Vec3 d = grid->centre(i);
+    c.direction[i] = {d.x, d.y, d.z};
+  }
+  c.solid_angle = k.parent_solid_angle;
+  for (int h = 0; h < 2; ++h) c.weight_half[h] = group_sums(t.weight_half[h], k, std::size_t(c.alpha_bins) * k.cells);
+  return c;
+}
+
+double coarsening_tv(const Table& t, const Table& other, int f, int levels) {
+  const Coarsening k = make_coarsening(t, f, levels);
+  const std::size_t groups = std::size_t(t.alpha_bins / f) * k.cells;
+  const std::vector<double> ya = normalised(t.weight_half[0]), yb = normalised(t.weight_half[1]);
+  const std::vector<double> yo = exit_distribution(other);
+  const std::vector<double> ga = group_sums(ya, k, groups), gb = group_sums(yb, k, groups), go = group_sums(yo, k, groups);
+  // E[(ya - M ya)(yb - M yb)] = (p - M p)^2 for the independent halves; the weights come from
+  // the other table, independent of both, as in certify().
+  double chi2 = 0, weight_sum = 0;
+  for (std::size_t i = 0; i < ya.size(); ++i) {
+    const double w = std::max(k.share[i] * go[k.group[i]], yo[i]);
+    weight_sum += w;
+    if (w > 0) chi2 += (ya[i] - k.share[i] * ga[k.group[i]]) * (yb[i] - k.share[i] * gb[k.group[i]]) / w;
+  }
+  return 0.5 * std::sqrt(std::max(0.0, chi2) * weight_sum);
+}
+
+Certificate certify(const StfModel& model, const Table& fit, const Table& h, const FitSettings& settings) {
+  if (fit.alpha_bins != h.alpha_bins || fit.grid != h.grid)
+    throw std::invalid_argument("the held-out table's resolution differs from the fit table's");
+  const int bins = model.bins();
+  if (bins < 1 || h.alpha_bins % bins != 0)
+    throw std::invalid_argument("the model's alpha bins are not groups of the held-out table's");
+  const int f = h.alpha_bins / bins;
+  for (int j = 0; j <= bins; ++j)
+    if (std::abs(model.alpha_edges[j] - h.alpha_edges[std::size_t(j) * f]) > 1e-12)
+      throw std::invalid_argument("the model's alpha bin edges are not edges of the held-out table's");
+  std::unique_ptr<DirectionGrid> grid = make_grid(h.grid);
+  const QuadratureLevels levels(*grid);
+  const std::vector<double> x = h.weight(), t = exit_distribution(fit);
+  double n = 0;
+  for (double v : x) n += v;
+  Certificate cert;
+  if (n <= 1) return cert;
+  std::vector<std::vector<double>> cell_probability(bins, std::vector<double>(h.cells, 0.0));
+  for_each_bin(bins, settings, [&](int j) {
+    if (model.alpha_probability[j] > 0) cell_probability[j] = model_cell_probabilities(model, j, levels);
+  });
+  double chi2_var = 0, unsupported_var = 0, weight_sum = 0;
+  for (int j = 0; j < bins; ++j) {
+    const std::vector<double>& q = cell_probability[j];
+    const double group_area = band_area(h.alpha_edges, j * f, (j + 1) * f);
+    for (int a = j * f; a < (j + 1) * f; ++a) {
+      const double bin_probability = model.alpha_probability[j] * band_area(h.alpha_edges, a, a + 1) / group_area;
+      for (std::int64_t c = 0; c < h.cells; ++c) {
+        const std::size_t i = std::size_t(a) * h.cells + c;
+        const double count = x[i], y = count / n, m = bin_probability * q[c], w = std::max(m, t[i]);
+        weight_sum += w;
+        if (w > 0) {
+          // E[(y - m)^2] = (p - m)^2 + p (1 - p) / n; count / n^2 and count (count - 1) /
+          // (n^2 (n - 1)) are unbiased for p / n and p^2 / n.
+          cert.chi2 += ((y - m) * (y - m) - count / (n * n) + count * (count - 1) / (n * n * (n - 1))) / w;
+          const double p = std::max(y, m);
+          chi2_var += (4 * (y - m) * (y - m) * p / n + 2 * p * p / (n * n)) / (w * w);
+        } else {
+          cert.unsupported += y;
+          unsupported_var += y / n;
+        }
+      }
+    }
+  }
+  cert.chi2_sd = std::sqrt(chi2_var);
+  cert.tv_bound = 0.5 * (std::sqrt(std::max(0.0, cert.chi2 + 2 * cert.chi2_sd) * weight_sum) + cert.unsupported +
+                         2 * std::sqrt(unsupported_var));
+  return cert;
+}
+
+ToleranceFit fit_to_tolerance(const Table& t, const Table& heldout, double tolerance, const FitSettings& s) {
+  if (heldout.alpha_bins != t.alpha_bins || heldout.grid != t.grid)
+    throw std::invalid_argument("the held-out table's resolution differs from the fit table's");
+  ToleranceFit r;
+  // Fewest alpha bins, then coarsest grid, each within half the tolerance.
+  for (int f = t.alpha_bins; f >= 1; --f)
+    if (t.alpha_bins % f == 0 && (f == 1 || coarsening_tv(t, heldout, f, 0) <= tolerance / 2)) {
+      r.alpha_factor = f;
+      break;
+    }
+  std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
+  int deepest = 0;
+  while (s.kind == ModelKind::kVmf && !grid->coarser(deepest + 1).empty()) ++deepest;
+  for (int levels = deepest; levels >= 0; --levels)
+    if (levels == 0 || coarsening_tv(t, heldout, 1, levels) <= tolerance / 2) {
+      r.grid_levels = levels;
+      break;
+    }
+  r.fitted = coarsen_table(t, r.alpha_factor, r.grid_levels);
+
+  std::vector<int> sizes;
+  for (int size : auto_candidates(s.kind))
+    if (s.automatic || size <= s.size) sizes.push_back(size);
+  if (sizes.empty()) sizes.push_back(s.size);
+  int no_gain = 0;
+  for (int size : sizes) {
+    FitSettings fs = s;
+    fs.automatic = false;
+    fs.size = size;
+    FitReport report;
+    StfModel model = fit_table(r.fitted, fs, &report);
+    if (s.cancel && s.cancel->load()) return r;
+    Certificate cert = certify(model, t, heldout, s);
+    if (s.cancel && s.cancel->load()) return r;
+    r.attempts.emplace_back(size, cert.tv_bound);
+    // Two larger models in a row that do not lower the bound are fitting noise: more paths
+    // are needed.
+    if (r.attempts.size() > 1 && cert.tv_bound >= r.certificate.tv_bound) {
+      if (++no_gain == 2) break;
+      continue;
+    }
+    no_gain = 0;
+    r.model = std::move(model), r.report = std::move(report), r.size = size, r.certificate = cert;
+    if (cert.tv_bound <= tolerance) {
+      r.met = true;
+      break;
+    }
+  }
+  return r;
+}
+
+}  // namespace stf::fit
