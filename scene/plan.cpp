@@ -113,7 +113,7 @@ Plan make_plan(const Scene& scene, const std::string& cache_dir) {
   }
   // A shared entry says so.
   for (PlanEntry& e : plan.entries)
-    if (e.media.size() > 1 && e.action == "compute") e.reason += "; shared by " + std::to_string(e.media.size()) + " media";
+    if (e.media.size() > 1) e.reason += "; shared by " + std::to_string(e.media.size()) + " media";
   return plan;
 }
 
