@@ -1,6 +1,7 @@
 // `stf fit`: a raw table to a compact model; `stf eval`: error against a reference table.
 #include <CLI/CLI.hpp>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <memory>
@@ -56,9 +57,14 @@ fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, cons
   Table heldout = read_table(o.heldout);
   if (heldout.alpha_bins != table.alpha_bins || heldout.grid != table.grid || heldout.seed == table.seed)
     fail("--heldout must have the table's grid and alpha bins and another seed");
+  auto same = [](double a, double b) { return std::abs(a - b) <= 1e-12 * std::max(1.0, std::abs(a)); };
+  if (!same(heldout.medium.tau(), table.medium.tau()) || !same(heldout.medium.albedo(), table.medium.albedo()) ||
+      !same(heldout.medium.g, table.medium.g) || heldout.max_scatter != table.max_scatter)
+    fail("--heldout must be a table of the same medium (tau, albedo, g, --max-scatter)");
   fit::ToleranceFit r = fit::fit_to_tolerance(table, heldout, tolerance, settings);
   provenance.tolerance = tolerance, provenance.tv_bound = r.certificate.tv_bound, provenance.tolerance_met = r.met;
   provenance.heldout_table = o.heldout, provenance.heldout_paths = heldout.paths;
+  provenance.fit_grid = r.fitted.grid;
   if (!o.quiet) {
     std::string tried;
     for (auto [size, bound] : r.attempts) tried += " " + std::to_string(size) + ":" + std::to_string(bound).substr(0, 6);
@@ -94,7 +100,6 @@ void run_fit(const FitOptions& o) {
   } else {
     tolerant = fit_to_tolerance(o, table, settings, provenance);
     model = tolerant->model, report = tolerant->report;
-    provenance.table = &tolerant->fitted;  // the coarsened table the model was fitted to
   }
   if (interrupted) fail("interrupted; no model written");
   fit::write_model(model, report, provenance, out.temp_path());

@@ -47,6 +47,7 @@ void write_model(const StfModel& m, const FitReport& r, const Provenance& p, con
       put_attr(file, "tolerance", p.tolerance);
       put_attr(file, "tv_bound", p.tv_bound);
       put_attr(file, "tolerance_met", int(p.tolerance_met));
+      put_attr(file, "fit_grid", p.fit_grid);
       put_attr(file, "heldout_table", p.heldout_table);
       put_attr(file, "heldout_paths", p.heldout_paths);
     }
@@ -177,6 +178,7 @@ ModelSummary read_model_summary(const std::string& path) {
       s.tolerance = get_double(file, "tolerance");
       s.tv_bound = get_double(file, "tv_bound");
       s.tolerance_met = get_int(file, "tolerance_met") != 0;
+      s.grid = get_string(file, "fit_grid");
     }
   } catch (const H5::Exception& e) {
     throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());

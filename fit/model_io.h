@@ -18,6 +18,7 @@ struct Provenance {
   // that certified it; tolerance <= 0 when the fit had none.
   double tolerance = 0, tv_bound = 0;
   bool tolerance_met = false;
+  std::string fit_grid;  // the coarsened grid the model was fitted on
   std::string heldout_table;
   std::int64_t heldout_paths = 0;
 };
@@ -27,7 +28,7 @@ struct ModelSummary {
   std::string kind;       // "vmf" or "sh"
   int size = 0;           // lobes or band limit
   int alpha_bins = 0;
-  std::string grid;       // of the table it was fitted to
+  std::string grid;       // it was fitted on
   std::int64_t paths = 0; // of that table
   std::int64_t bytes = 0; // packed
   double tolerance = 0, tv_bound = 0;  // tolerance <= 0: none

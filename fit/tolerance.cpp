@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 
@@ -22,19 +23,23 @@ struct Coarsening {
   std::int64_t cells = 0;            // its cell count
   std::vector<std::int64_t> parent;  // [cells] fine cell -> coarse cell
   std::vector<double> parent_solid_angle;
-  std::vector<std::int64_t> group;   // [alpha_bins * cells] -> coarse (bin, cell)
-  std::vector<double> share;         // [alpha_bins * cells]
+  std::vector<std::int64_t> group;  // [alpha_bins * cells] -> coarse (bin, cell)
+  std::vector<double> share;        // [alpha_bins * cells]
 };
 
-double band_area(const std::vector<double>& edges, int lo, int hi) { return std::cos(edges[lo]) - std::cos(edges[hi]); }
+double band_area(const std::vector<double>& edges, int lo, int hi) {
+  return std::cos(edges[lo]) - std::cos(edges[hi]);
+}
 
 Coarsening make_coarsening(const Table& t, int f, int levels) {
   if (f < 1 || t.alpha_bins % f != 0)
-    throw std::invalid_argument("alpha factor " + std::to_string(f) + " does not divide " + std::to_string(t.alpha_bins) + " bins");
+    throw std::invalid_argument("alpha factor " + std::to_string(f) + " does not divide " +
+                                std::to_string(t.alpha_bins) + " bins");
   std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
   Coarsening k;
   k.grid = grid->coarser(levels);
-  if (k.grid.empty()) throw std::invalid_argument(t.grid + " cannot be halved " + std::to_string(levels) + " times");
+  if (k.grid.empty())
+    throw std::invalid_argument(t.grid + " cannot be halved " + std::to_string(levels) + " times");
   k.cells = t.cells >> (2 * levels);
   k.parent = grid->parents(levels);
   k.parent_solid_angle.assign(k.cells, 0.0);
@@ -43,7 +48,8 @@ Coarsening make_coarsening(const Table& t, int f, int levels) {
   k.share.resize(k.group.size());
   for (int a = 0; a < t.alpha_bins; ++a) {
     const int j = a / f;
-    const double alpha_share = band_area(t.alpha_edges, a, a + 1) / band_area(t.alpha_edges, j * f, (j + 1) * f);
+    const double alpha_share =
+        band_area(t.alpha_edges, a, a + 1) / band_area(t.alpha_edges, j * f, (j + 1) * f);
     for (std::int64_t c = 0; c < t.cells; ++c) {
       const std::size_t i = std::size_t(a) * t.cells + c;
       k.group[i] = std::int64_t(j) * k.cells + k.parent[c];
@@ -62,9 +68,12 @@ std::vector<double> normalised(std::vector<double> y) {
 }
 
 // The exit distribution given escape, over (alpha bin, cell).
-std::vector<double> exit_distribution(const Table& t) { return normalised(t.weight()); }
+std::vector<double> exit_distribution(const Table& t) {
+  return normalised(t.weight());
+}
 
-std::vector<double> group_sums(const std::vector<double>& y, const Coarsening& k, std::size_t groups) {
+std::vector<double> group_sums(const std::vector<double>& y, const Coarsening& k,
+                               std::size_t groups) {
   std::vector<double> g(groups, 0.0);
   for (std::size_t i = 0; i < y.size(); ++i) g[k.group[i]] += y[i];
   return g;
@@ -79,7 +88,8 @@ Table coarsen_table(const Table& t, int f, int levels) {
   c.alpha_bins = t.alpha_bins / f;
   c.cells = k.cells;
   c.alpha_edges.clear();
-  for (int j = 0; j <= c.alpha_bins; ++j) c.alpha_edges.push_back(t.alpha_edges[std::size_t(j) * f]);
+  for (int j = 0; j <= c.alpha_bins; ++j)
+    c.alpha_edges.push_back(t.alpha_edges[std::size_t(j) * f]);
   std::unique_ptr<DirectionGrid> grid = make_grid(k.grid);
   c.direction.resize(k.cells);
   for (std::int64_t i = 0; i < k.cells; ++i) {
@@ -87,7 +97,8 @@ Table coarsen_table(const Table& t, int f, int levels) {
     c.direction[i] = {d.x, d.y, d.z};
   }
   c.solid_angle = k.parent_solid_angle;
-  for (int h = 0; h < 2; ++h) c.weight_half[h] = group_sums(t.weight_half[h], k, std::size_t(c.alpha_bins) * k.cells);
+  for (int h = 0; h < 2; ++h)
+    c.weight_half[h] = group_sums(t.weight_half[h], k, std::size_t(c.alpha_bins) * k.cells);
   return c;
 }
 
@@ -96,19 +107,27 @@ double coarsening_tv(const Table& t, const Table& other, int f, int levels) {
   const std::size_t groups = std::size_t(t.alpha_bins / f) * k.cells;
   const std::vector<double> ya = normalised(t.weight_half[0]), yb = normalised(t.weight_half[1]);
   const std::vector<double> yo = exit_distribution(other);
-  const std::vector<double> ga = group_sums(ya, k, groups), gb = group_sums(yb, k, groups), go = group_sums(yo, k, groups);
+  auto empty = [](const std::vector<double>& y) {
+    return std::all_of(y.begin(), y.end(), [](double v) { return v == 0; });
+  };
+  if (empty(ya) || empty(yb) || empty(yo))
+    return std::numeric_limits<double>::infinity();  // cannot tell
+  const std::vector<double> ga = group_sums(ya, k, groups), gb = group_sums(yb, k, groups),
+                            go = group_sums(yo, k, groups);
   // E[(ya - M ya)(yb - M yb)] = (p - M p)^2 for the independent halves; the weights come from
   // the other table, independent of both, as in certify().
   double chi2 = 0, weight_sum = 0;
   for (std::size_t i = 0; i < ya.size(); ++i) {
     const double w = std::max(k.share[i] * go[k.group[i]], yo[i]);
     weight_sum += w;
-    if (w > 0) chi2 += (ya[i] - k.share[i] * ga[k.group[i]]) * (yb[i] - k.share[i] * gb[k.group[i]]) / w;
+    if (w > 0)
+      chi2 += (ya[i] - k.share[i] * ga[k.group[i]]) * (yb[i] - k.share[i] * gb[k.group[i]]) / w;
   }
   return 0.5 * std::sqrt(std::max(0.0, chi2) * weight_sum);
 }
 
-Certificate certify(const StfModel& model, const Table& fit, const Table& h, const FitSettings& settings) {
+Certificate certify(const StfModel& model, const Table& fit, const Table& h,
+                    const FitSettings& settings) {
   if (fit.alpha_bins != h.alpha_bins || fit.grid != h.grid)
     throw std::invalid_argument("the held-out table's resolution differs from the fit table's");
   const int bins = model.bins();
@@ -117,48 +136,59 @@ Certificate certify(const StfModel& model, const Table& fit, const Table& h, con
   const int f = h.alpha_bins / bins;
   for (int j = 0; j <= bins; ++j)
     if (std::abs(model.alpha_edges[j] - h.alpha_edges[std::size_t(j) * f]) > 1e-12)
-      throw std::invalid_argument("the model's alpha bin edges are not edges of the held-out table's");
+      throw std::invalid_argument(
+          "the model's alpha bin edges are not edges of the held-out table's");
   std::unique_ptr<DirectionGrid> grid = make_grid(h.grid);
   const QuadratureLevels levels(*grid);
   const std::vector<double> x = h.weight(), t = exit_distribution(fit);
-  double n = 0;
+  double n = 0, n_fit = 0;
   for (double v : x) n += v;
+  for (double v : fit.weight()) n_fit += v;
   Certificate cert;
-  if (n <= 1) return cert;
+  if (n < 2 || n_fit < 1) {  // nothing to certify with
+    cert.tv_bound = std::numeric_limits<double>::infinity();
+    return cert;
+  }
+  // Below one fit-table escape a cell's weight says nothing; a floor there keeps single
+  // held-out escapes in cells the model calls empty from dominating the variance.
+  const double floor = 1 / n_fit;
   std::vector<std::vector<double>> cell_probability(bins, std::vector<double>(h.cells, 0.0));
   for_each_bin(bins, settings, [&](int j) {
-    if (model.alpha_probability[j] > 0) cell_probability[j] = model_cell_probabilities(model, j, levels);
+    if (model.alpha_probability[j] > 0)
+      cell_probability[j] = model_cell_probabilities(model, j, levels);
   });
-  double chi2_var = 0, unsupported_var = 0, weight_sum = 0;
+  double chi2_var = 0, weight_sum = 0;
   for (int j = 0; j < bins; ++j) {
     const std::vector<double>& q = cell_probability[j];
     const double group_area = band_area(h.alpha_edges, j * f, (j + 1) * f);
     for (int a = j * f; a < (j + 1) * f; ++a) {
-      const double bin_probability = model.alpha_probability[j] * band_area(h.alpha_edges, a, a + 1) / group_area;
+      const double bin_probability =
+          model.alpha_probability[j] * band_area(h.alpha_edges, a, a + 1) / group_area;
       for (std::int64_t c = 0; c < h.cells; ++c) {
         const std::size_t i = std::size_t(a) * h.cells + c;
-        const double count = x[i], y = count / n, m = bin_probability * q[c], w = std::max(m, t[i]);
+        const double count = x[i], y = count / n, m = bin_probability * q[c],
+                     w = std::max({m, t[i], floor});
         weight_sum += w;
-        if (w > 0) {
+        {
           // E[(y - m)^2] = (p - m)^2 + p (1 - p) / n; count / n^2 and count (count - 1) /
           // (n^2 (n - 1)) are unbiased for p / n and p^2 / n.
-          cert.chi2 += ((y - m) * (y - m) - count / (n * n) + count * (count - 1) / (n * n * (n - 1))) / w;
-          const double p = std::max(y, m);
-          chi2_var += (4 * (y - m) * (y - m) * p / n + 2 * p * p / (n * n)) / (w * w);
-        } else {
-          cert.unsupported += y;
-          unsupported_var += y / n;
+          const double d =
+              (y - m) * (y - m) - count / (n * n) + count * (count - 1) / (n * n * (n - 1));
+          cert.chi2 += d / w;
+          // Poisson: Var = [4 (p - m)^2 p / n + 2 p^2 / n^2] / w^2, with p taken as w (the
+          // fit table's and the model's, independent of the held-out noise) and (p - m)^2 as d.
+          chi2_var += 4 * std::max(0.0, d) / (n * w) + 2 / (n * n);
         }
       }
     }
   }
   cert.chi2_sd = std::sqrt(chi2_var);
-  cert.tv_bound = 0.5 * (std::sqrt(std::max(0.0, cert.chi2 + 2 * cert.chi2_sd) * weight_sum) + cert.unsupported +
-                         2 * std::sqrt(unsupported_var));
+  cert.tv_bound = 0.5 * std::sqrt(std::max(0.0, cert.chi2 + 2 * cert.chi2_sd) * weight_sum);
   return cert;
 }
 
-ToleranceFit fit_to_tolerance(const Table& t, const Table& heldout, double tolerance, const FitSettings& s) {
+ToleranceFit fit_to_tolerance(const Table& t, const Table& heldout, double tolerance,
+                              const FitSettings& s) {
   if (heldout.alpha_bins != t.alpha_bins || heldout.grid != t.grid)
     throw std::invalid_argument("the held-out table's resolution differs from the fit table's");
   ToleranceFit r;
@@ -180,8 +210,8 @@ ToleranceFit fit_to_tolerance(const Table& t, const Table& heldout, double toler
 
   std::vector<int> sizes;
   for (int size : auto_candidates(s.kind))
-    if (s.automatic || size <= s.size) sizes.push_back(size);
-  if (sizes.empty()) sizes.push_back(s.size);
+    if (s.automatic || size < s.size) sizes.push_back(size);
+  if (!s.automatic) sizes.push_back(s.size);
   int no_gain = 0;
   for (int size : sizes) {
     FitSettings fs = s;

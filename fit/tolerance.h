@@ -15,15 +15,17 @@
 //     certified TV bound within the tolerance; the search stops when two larger sizes in a
 //     row do not lower the bound (they fit noise).
 // Coarsening errors are estimated from the product of the fit table's two half-tables'
-// coarsening residuals, which has no noise bias (the halves are independent). The certificate bounds TV by
-// Cauchy-Schwarz: sum |p - m| <= sqrt(sum (p - m)^2 / w * sum w) for any positive weights,
-// here w = max(m, t) with t the fit table's distribution (so a cell the model underpredicts,
-// e.g. the uncollided exit, is weighted by its data, not by the model's tiny mass), plus the
-// true mass where w = 0. The weighted sum is estimated without bias from the held-out counts
-// (their noise terms subtracted; t does not depend on them) and two standard deviations are
-// added. The bound may exceed 1 (then it says nothing). The bound is valid for
-// the certified model itself: it is the one returned, not a refit. It is conservative: on
-// smooth exits about 1.5 to 2.5 times the TV measured against a 1e8-path reference.
+// coarsening residuals, which has no noise bias (the halves are independent). The certificate
+// bounds TV by Cauchy-Schwarz: sum |p - m| <= sqrt(sum (p - m)^2 / w * sum w) for any positive
+// weights, here w = max(m, t, 1 / n_t) with t the fit table's distribution and n_t its escapes (so
+// a cell the model underpredicts, e.g. the uncollided exit, is weighted by its data, not by the
+// model's tiny mass). The weighted sum is estimated without bias from the held-out counts
+// (their noise terms subtracted; w does not depend on them) and two standard deviations are
+// added. The bound may exceed 1 (then it says nothing); it is infinite without escapes. Each
+// fit tried is certified at two standard deviations on the same held-out table, with no
+// correction for the several tried. It is conservative: 1.4 to 1.8 times the TV measured
+// against large references (docs/fit.md). It is valid for the certified model itself: that
+// is the one returned, not a refit.
 #pragma once
 
 #include <string>
@@ -47,15 +49,15 @@ Table coarsen_table(const Table& t, int alpha_factor, int grid_levels);
 double coarsening_tv(const Table& t, const Table& other, int alpha_factor, int grid_levels);
 
 struct Certificate {
-  double tv_bound = 0;     // upper bound on the TV distance to the true exit distribution
-  double chi2 = 0;         // unbiased estimate of sum (p - m)^2 / w over cells where w > 0
-  double chi2_sd = 0;      // its standard deviation
-  double unsupported = 0;  // estimated true mass where w = 0
+  double tv_bound = 0;  // upper bound on the TV distance to the true exit distribution
+  double chi2 = 0;      // unbiased estimate of sum (p - m)^2 / w
+  double chi2_sd = 0;   // its standard deviation
 };
 
 // Certifies a model fitted to (a coarsening of) `fit` against `heldout`, a table it was not
 // fitted to: the model's alpha bins must be groups of the tables'. `settings` gives the threads.
-Certificate certify(const StfModel& model, const Table& fit, const Table& heldout, const FitSettings& settings = {});
+Certificate certify(const StfModel& model, const Table& fit, const Table& heldout,
+                    const FitSettings& settings = {});
 
 struct ToleranceFit {
   StfModel model;
@@ -67,9 +69,11 @@ struct ToleranceFit {
   std::vector<std::pair<int, double>> attempts;  // (size, TV bound) of each fit tried
 };
 
-// `settings` gives the model kind and the largest size to try (vmf:auto / sh:auto: all of
-// auto_candidates). When nothing meets the tolerance the best certified fit is returned with
-// met = false. With settings.cancel set the result must be thrown away.
-ToleranceFit fit_to_tolerance(const Table& fit, const Table& heldout, double tolerance, const FitSettings& settings);
+// `settings` gives the model kind and the sizes to try: vmf:auto / sh:auto all of
+// auto_candidates; vmf:K / sh:L those below K (L) and K (L) itself. When nothing meets the
+// tolerance the best certified fit is returned with met = false. With settings.cancel set the
+// result must be thrown away.
+ToleranceFit fit_to_tolerance(const Table& fit, const Table& heldout, double tolerance,
+                              const FitSettings& settings);
 
 }  // namespace stf::fit

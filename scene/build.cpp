@@ -68,32 +68,40 @@ std::int64_t first_round_paths(const Settings& s) {
   std::unique_ptr<DirectionGrid> grid = make_grid(s.grid);
   const double cells = double(s.alpha_bins) * double(grid->cell_count());
   const double paths = 8 * std::sqrt(2 * cells) / (s.tolerance * s.tolerance);
-  return std::clamp(std::int64_t(std::ceil(paths / 1e4)) * 10'000, std::int64_t(10'000), s.paths);
+  return std::min(s.paths, std::max(std::int64_t(10'000), std::int64_t(std::ceil(paths / 1e4)) * 10'000));
 }
 
 // Rounds of paths, fourfold up to the settings' paths, until a fit is certified within the
-// tolerance on a second table (seed + 1) or more paths stop helping; the last round's best is
-// kept either way, marked in the model file.
+// tolerance on a second table (seed + 1) or more paths stop helping; the round with the
+// lowest bound is kept either way, marked in the model file.
 void compute_to_tolerance(const Plan& plan, const PlanEntry& e, const fit::FitSettings& fs, int threads,
                           const std::atomic<bool>* cancel) {
   const Settings& s = plan.settings;
-  double previous_bound = std::numeric_limits<double>::infinity();
+  struct Round {
+    Table table;
+    std::int64_t heldout_paths = 0;
+    fit::ToleranceFit fit;
+  };
+  std::optional<Round> best;
   for (std::int64_t paths = first_round_paths(s);; paths = std::min(s.paths, 4 * paths)) {
     Table table = walk(e, s, paths, s.seed, threads, cancel), heldout = walk(e, s, paths, s.seed + 1, threads, cancel);
     fit::ToleranceFit r = fit::fit_to_tolerance(table, heldout, s.tolerance, fs);
     if (cancel && *cancel) interrupted();
     // Four times the paths halve the noise in the bound; a round that gains under 10% is
     // held back by what the model kind cannot represent, and more paths will not help.
-    const bool stalled = r.certificate.tv_bound > 0.9 * previous_bound;
-    previous_bound = r.certificate.tv_bound;
-    if (!r.met && !stalled && paths < s.paths) continue;
-    fit::Provenance provenance;
-    provenance.model_spec = s.model, provenance.table = &r.fitted;
-    provenance.tolerance = s.tolerance, provenance.tv_bound = r.certificate.tv_bound, provenance.tolerance_met = r.met;
-    provenance.heldout_table = "seed " + std::to_string(s.seed + 1) + " (not kept)", provenance.heldout_paths = heldout.paths;
-    store(plan, e, table, r.model, r.report, provenance);
-    return;
+    const double previous = best ? best->fit.certificate.tv_bound : std::numeric_limits<double>::infinity();
+    const bool stalled = r.certificate.tv_bound > 0.9 * previous, met = r.met;
+    if (r.certificate.tv_bound < previous) best = Round{std::move(table), heldout.paths, std::move(r)};
+    if (!met && !stalled && paths < s.paths) continue;
+    break;
   }
+  const fit::ToleranceFit& r = best->fit;
+  fit::Provenance provenance;
+  provenance.model_spec = s.model, provenance.table = &best->table, provenance.fit_grid = r.fitted.grid;
+  provenance.tolerance = s.tolerance, provenance.tv_bound = r.certificate.tv_bound, provenance.tolerance_met = r.met;
+  provenance.heldout_table = "seed " + std::to_string(s.seed + 1) + " (not kept)";
+  provenance.heldout_paths = best->heldout_paths;
+  store(plan, e, best->table, r.model, r.report, provenance);
 }
 
 void compute(const Plan& plan, const PlanEntry& e, int threads, const std::atomic<bool>* cancel) {

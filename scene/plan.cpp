@@ -135,7 +135,7 @@ std::string plan_json(const Plan& plan) {
       s << ", \"key\": \"" << e.key << "\",\n     \"resolution\": {\"chosen\": " << (r.measured ? "true" : "false")
         << ", \"grid\": \"" << r.grid << "\", \"alpha_bins\": " << r.alpha_bins << ", \"model\": \"" << r.model
         << "\", \"paths\": " << r.paths << ", \"model_bytes\": " << r.bytes
-        << ", \"tv_bound\": " << (r.tv_bound >= 0 ? fmt(r.tv_bound) : "null") << "}";
+        << ", \"tv_bound\": " << (r.tv_bound >= 0 && std::isfinite(r.tv_bound) ? fmt(r.tv_bound) : "null") << "}";
     }
     s << "}" << (i + 1 < plan.entries.size() ? ",\n" : "\n");
   }
