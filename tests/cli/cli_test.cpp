@@ -233,6 +233,8 @@ TEST_F(Cli, FitAndEvalRejectBadInput) {
   ASSERT_EQ(stf("precompute " + kGood + " -o " + out("t.h5")).status, 0);
   ASSERT_EQ(stf("precompute --sigma-s 1 --sigma-a 0 --g 0 --alpha-bins 5 --grid healpix:2 --paths 100 --quiet -o " +
                 out("other.h5")).status, 0);
+  ASSERT_EQ(stf("precompute --sigma-s 3 --sigma-a 0.5 --g 0.3 --alpha-bins 6 --grid healpix:2 --paths 100 --seed 2 "
+                "--quiet -o " + out("denser.h5")).status, 0);
   const BadInput cases[] = {
       {"fit " + out("t.h5") + " --model vmf:0 -o " + out("m.h5"), "--model"},
       {"fit " + out("t.h5") + " --model gauss:3 -o " + out("m.h5"), "--model"},
@@ -243,6 +245,7 @@ TEST_F(Cli, FitAndEvalRejectBadInput) {
       {"fit " + out("t.h5") + " --tolerance 1.5 --heldout " + out("t.h5") + " -o " + out("m.h5"), "--tolerance"},
       {"fit " + out("t.h5") + " --tolerance 0.1 --heldout " + out("t.h5") + " -o " + out("m.h5"), "--heldout"},
       {"fit " + out("t.h5") + " --tolerance 0.1 --heldout " + out("other.h5") + " -o " + out("m.h5"), "--heldout"},
+      {"fit " + out("t.h5") + " --tolerance 0.1 --heldout " + out("denser.h5") + " -o " + out("m.h5"), "--heldout"},
   };
   for (const BadInput& c : cases) {
     Result r = stf(c.args);
