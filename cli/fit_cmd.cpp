@@ -67,7 +67,11 @@ fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, cons
   provenance.fit_grid = r.fitted.grid;
   if (!o.quiet) {
     std::string tried;
-    for (auto [size, bound] : r.attempts) tried += " " + std::to_string(size) + ":" + std::to_string(bound).substr(0, 6);
+    for (auto [size, bound] : r.attempts) {
+      char item[64];
+      std::snprintf(item, sizeof item, " %d: %.3g", size, bound);
+      tried += item;
+    }
     std::fprintf(stderr, "stf fit: TV bound by size:%s\n", tried.c_str());
     std::fprintf(stderr, "stf fit: %d alpha bins, %s, size %d: TV <= %.3g (%s %.3g)\n", r.fitted.alpha_bins,
                  r.fitted.grid.c_str(), r.size, r.certificate.tv_bound, r.met ? "within" : "NOT within", tolerance);
