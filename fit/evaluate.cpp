@@ -25,27 +25,6 @@ std::vector<double> bin_distribution(const Table& t, int b, double& total) {
   return p;
 }
 
-// The candidate's alpha bins must be the reference's or groups of f consecutive ones; returns f.
-int alpha_group_size(const std::vector<double>& edges, const Table& reference) {
-  const int bins = int(edges.size()) - 1;
-  if (bins < 1 || reference.alpha_bins % bins != 0)
-    throw std::invalid_argument("alpha bins (" + std::to_string(bins) + ") are neither the reference's (" +
-                                std::to_string(reference.alpha_bins) + ") nor groups of them");
-  const int f = reference.alpha_bins / bins;
-  for (int j = 0; j <= bins; ++j)
-    if (std::abs(edges[j] - reference.alpha_edges[std::size_t(j) * f]) > 1e-12)
-      throw std::invalid_argument("alpha bin edges are not edges of the reference's");
-  return f;
-}
-
-// The share of reference bin b in the probability of the candidate's bin (b / f): its area
-// on the unit sphere, since a sampler spreads alpha uniformly in cos(alpha) within a bin.
-double area_share(const Table& reference, int b, int f) {
-  auto area = [&](int lo, int hi) { return std::cos(reference.alpha_edges[lo]) - std::cos(reference.alpha_edges[hi]); };
-  const int j = b / f;
-  return area(b, b + 1) / area(j * f, (j + 1) * f);
-}
-
 BinError compare(const std::vector<double>& p, const std::vector<double>& q) {
   BinError e;
   for (std::size_t c = 0; c < q.size(); ++c) {
@@ -81,6 +60,25 @@ Evaluation evaluate_bins(const Table& reference, CandidateBin candidate) {
 }
 
 }  // namespace
+
+int alpha_group_size(const std::vector<double>& edges, const Table& reference) {
+  const int bins = int(edges.size()) - 1;
+  if (bins < 1 || reference.alpha_bins % bins != 0)
+    throw std::invalid_argument("alpha bins (" + std::to_string(bins) + ") are neither the reference's (" +
+                                std::to_string(reference.alpha_bins) + ") nor groups of them");
+  const int f = reference.alpha_bins / bins;
+  for (int j = 0; j <= bins; ++j)
+    if (std::abs(edges[j] - reference.alpha_edges[std::size_t(j) * f]) > 1e-12)
+      throw std::invalid_argument("alpha bin edges are not edges of the reference's");
+  return f;
+}
+
+double area_share(const Table& reference, int b, int f) {
+  auto area = [&](int lo, int hi) { return std::cos(reference.alpha_edges[lo]) - std::cos(reference.alpha_edges[hi]); };
+  const int j = b / f;
+  return area(b, b + 1) / area(j * f, (j + 1) * f);
+}
+
 
 std::vector<double> model_cell_probabilities(const StfModel& m, int b, const QuadratureLevels& levels) {
   if (m.kind == ModelKind::kVmf) {

@@ -27,10 +27,6 @@ struct Coarsening {
   std::vector<double> share;        // [alpha_bins * cells]
 };
 
-double band_area(const std::vector<double>& edges, int lo, int hi) {
-  return std::cos(edges[lo]) - std::cos(edges[hi]);
-}
-
 Coarsening make_coarsening(const Table& t, int f, int levels) {
   if (f < 1 || t.alpha_bins % f != 0)
     throw std::invalid_argument("alpha factor " + std::to_string(f) + " does not divide " +
@@ -48,8 +44,7 @@ Coarsening make_coarsening(const Table& t, int f, int levels) {
   k.share.resize(k.group.size());
   for (int a = 0; a < t.alpha_bins; ++a) {
     const int j = a / f;
-    const double alpha_share =
-        band_area(t.alpha_edges, a, a + 1) / band_area(t.alpha_edges, j * f, (j + 1) * f);
+    const double alpha_share = area_share(t, a, f);
     for (std::int64_t c = 0; c < t.cells; ++c) {
       const std::size_t i = std::size_t(a) * t.cells + c;
       k.group[i] = std::int64_t(j) * k.cells + k.parent[c];
@@ -130,20 +125,14 @@ Certificate certify(const StfModel& model, const Table& fit, const Table& h,
                     const FitSettings& settings) {
   if (fit.alpha_bins != h.alpha_bins || fit.grid != h.grid)
     throw std::invalid_argument("the held-out table's resolution differs from the fit table's");
-  const int bins = model.bins();
-  if (bins < 1 || h.alpha_bins % bins != 0)
-    throw std::invalid_argument("the model's alpha bins are not groups of the held-out table's");
-  const int f = h.alpha_bins / bins;
-  for (int j = 0; j <= bins; ++j)
-    if (std::abs(model.alpha_edges[j] - h.alpha_edges[std::size_t(j) * f]) > 1e-12)
-      throw std::invalid_argument(
-          "the model's alpha bin edges are not edges of the held-out table's");
+  const int bins = model.bins(), f = alpha_group_size(model.alpha_edges, h);
   std::unique_ptr<DirectionGrid> grid = make_grid(h.grid);
   const QuadratureLevels levels(*grid);
-  const std::vector<double> x = h.weight(), t = exit_distribution(fit);
+  const std::vector<double> x = h.weight(), fit_counts = fit.weight();
   double n = 0, n_fit = 0;
   for (double v : x) n += v;
-  for (double v : fit.weight()) n_fit += v;
+  for (double v : fit_counts) n_fit += v;
+  const std::vector<double> t = normalised(fit_counts);
   Certificate cert;
   if (n < 2 || n_fit < 1) {  // nothing to certify with
     cert.tv_bound = std::numeric_limits<double>::infinity();
@@ -160,25 +149,21 @@ Certificate certify(const StfModel& model, const Table& fit, const Table& h,
   double chi2_var = 0, weight_sum = 0;
   for (int j = 0; j < bins; ++j) {
     const std::vector<double>& q = cell_probability[j];
-    const double group_area = band_area(h.alpha_edges, j * f, (j + 1) * f);
     for (int a = j * f; a < (j + 1) * f; ++a) {
-      const double bin_probability =
-          model.alpha_probability[j] * band_area(h.alpha_edges, a, a + 1) / group_area;
+      const double bin_probability = model.alpha_probability[j] * area_share(h, a, f);
       for (std::int64_t c = 0; c < h.cells; ++c) {
         const std::size_t i = std::size_t(a) * h.cells + c;
         const double count = x[i], y = count / n, m = bin_probability * q[c],
                      w = std::max({m, t[i], floor});
         weight_sum += w;
-        {
-          // E[(y - m)^2] = (p - m)^2 + p (1 - p) / n; count / n^2 and count (count - 1) /
-          // (n^2 (n - 1)) are unbiased for p / n and p^2 / n.
-          const double d =
-              (y - m) * (y - m) - count / (n * n) + count * (count - 1) / (n * n * (n - 1));
-          cert.chi2 += d / w;
-          // Poisson: Var = [4 (p - m)^2 p / n + 2 p^2 / n^2] / w^2, with p taken as w (the
-          // fit table's and the model's, independent of the held-out noise) and (p - m)^2 as d.
-          chi2_var += 4 * std::max(0.0, d) / (n * w) + 2 / (n * n);
-        }
+        // E[(y - m)^2] = (p - m)^2 + p (1 - p) / n; count / n^2 and count (count - 1) /
+        // (n^2 (n - 1)) are unbiased for p / n and p^2 / n.
+        const double d =
+            (y - m) * (y - m) - count / (n * n) + count * (count - 1) / (n * n * (n - 1));
+        cert.chi2 += d / w;
+        // Poisson: Var = [4 (p - m)^2 p / n + 2 p^2 / n^2] / w^2, with p taken as w (the
+        // fit table's and the model's, independent of the held-out noise) and (p - m)^2 as d.
+        chi2_var += 4 * std::max(0.0, d) / (n * w) + 2 / (n * n);
       }
     }
   }
