@@ -16,8 +16,21 @@ namespace {
 struct BuildOptions {
   std::string scene, output, cache;
   std::string threads = "0";
-  bool plan_only = false, json = false, quiet = false;
+  bool plan_only = false, json = false, quiet = false, strict = false;
 };
+
+// One line per entry that a tolerance build could not certify within the tolerance.
+void warn_unmet(const scene::Plan& plan, bool strict) {
+  std::vector<const scene::PlanEntry*> unmet = scene::unmet_entries(plan);
+  if (unmet.empty()) return;
+  for (const scene::PlanEntry* e : unmet)
+    std::fprintf(stderr, "stf build: warning: tau %g albedo %g g %g (%s) is certified only within TV %.3g, not %g\n",
+                 e->tau, e->albedo, e->g, e->media.front().c_str(), e->resolution.tv_bound, plan.settings.tolerance);
+  std::string summary = std::to_string(unmet.size()) + " of the scene's entries are not certified within tolerance " +
+                        std::to_string(plan.settings.tolerance);
+  if (strict) throw ToleranceNotMet(summary + " (--strict)");
+  std::fprintf(stderr, "stf build: warning: %s\n", summary.c_str());
+}
 
 void run_build(const BuildOptions& o) {
   scene::Scene sc;
@@ -26,22 +39,35 @@ void run_build(const BuildOptions& o) {
   } catch (const scene::SceneError& e) {
     fail(e.what());
   }
+  if (o.plan_only && !o.output.empty()) fail("-o and --plan-only exclude each other: --plan-only writes no pack");
   if (!o.plan_only && o.output.empty()) fail("-o must name the output pack (or use --plan-only)");
   const std::string cache = o.cache.empty() ? o.scene + ".cache" : o.cache;
-  scene::Plan plan = scene::make_plan(sc, cache);
-  if (o.json) std::fputs(scene::plan_json(plan).c_str(), stdout);
-  if (!o.json && !o.quiet) std::fputs(scene::plan_table(plan).c_str(), stderr);
-  if (o.plan_only) return;
   const int threads = int(parse_count(o.threads, "--threads", 0, 4096));
-  AtomicOutput check(o.output, "-o");  // fail early on an unwritable output
-  install_interrupt_handler();
-  int computed = scene::build(
-      sc, plan, check.temp_path(), threads,
-      [&](int i, int n, const scene::PlanEntry& e) {
-        if (!o.quiet) std::fprintf(stderr, "stf build: [%d/%d] tau %g albedo %g g %g\n", i + 1, n, e.tau, e.albedo, e.g);
-      },
-      &interrupted);
-  check.commit();
+  scene::Plan plan = scene::make_plan(sc, cache);
+  if (o.plan_only) {
+    if (o.json) std::fputs(scene::plan_json(plan).c_str(), stdout);
+    else if (!o.quiet) std::fputs(scene::plan_table(plan).c_str(), stderr);
+    return;
+  }
+  AtomicOutput pack(o.output, "-o", {{o.scene, "the scene"}});  // checked before any work
+  if (!o.quiet) std::fputs(scene::plan_table(plan).c_str(), stderr);
+  int computed = 0;
+  try {
+    computed = scene::build(
+        sc, plan, pack.temp_path(), threads,
+        [&](int i, int n, const scene::PlanEntry& e) {
+          if (!o.quiet) std::fprintf(stderr, "stf build: [%d/%d] tau %g albedo %g g %g\n", i + 1, n, e.tau, e.albedo, e.g);
+        },
+        &interrupted);
+  } catch (const std::exception&) {
+    stop_if_interrupted();  // Ctrl-C: say so (finished entries stay in the cache)
+    throw;
+  }
+  // What was built, as the cache now holds it.
+  scene::Plan built = scene::make_plan(sc, cache);
+  warn_unmet(built, o.strict);
+  pack.commit();
+  if (o.json) std::fputs(scene::plan_json(built).c_str(), stdout);
   if (!o.quiet) std::fprintf(stderr, "stf build: computed %d entries, pack -> %s\n", computed, o.output.c_str());
 }
 
@@ -53,7 +79,10 @@ void add_build_command(CLI::App& app) {
   cmd->add_option("scene", o->scene, "Scene file (TOML)")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", o->output, "Output pack");
   cmd->add_flag("--plan-only", o->plan_only, "Print the plan; compute nothing");
-  cmd->add_flag("--json", o->json, "The plan as JSON on stdout");
+  cmd->add_flag("--json", o->json,
+                "The plan as JSON on stdout (after a build: as built, with what each entry got)");
+  cmd->add_flag("--strict", o->strict,
+                "Exit with status 3 (and write no pack) when an entry is not certified within the tolerance");
   cmd->add_option("--cache", o->cache, "Cache folder (default: SCENE.toml.cache)");
   cmd->add_option("--threads", o->threads, "Worker threads (0: all cores)")->capture_default_str();
   cmd->add_flag("--quiet", o->quiet, "No plan table and no progress");

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cstdint>
 #include <fstream>
+#include <optional>
 #include <stdexcept>
 #include <vector>
 #include <string>
@@ -22,6 +23,17 @@ struct Error : std::runtime_error {
 };
 [[noreturn]] void fail(const std::string& message);
 
+// Ctrl-C or SIGTERM: main() prints the line and exits with status 130, as shells expect.
+struct Interrupted : Error {
+  Interrupted() : Error("interrupted; nothing written") {}
+};
+// `stf build --strict` when an entry is not certified within the tolerance: exit status 3.
+struct ToleranceNotMet : Error {
+  using Error::Error;
+};
+// Throws Interrupted when the `interrupted` flag is set.
+void stop_if_interrupted();
+
 // Parses a count given in plain or exponent notation ("1e6"); it must be a whole number in
 // [min, max]. Fails naming `option` otherwise.
 std::int64_t parse_count(const std::string& text, const std::string& option, std::int64_t min,
@@ -30,40 +42,78 @@ std::int64_t parse_count(const std::string& text, const std::string& option, std
 // Folder of the Python drawing scripts: $STF_TOOLS_DIR, else the source tree's tools/.
 std::string tools_dir();
 
-// Set by SIGINT / SIGTERM once install_interrupt_handler() ran.
+// Set by the first SIGINT / SIGTERM once install_interrupt_handler() ran; long loops poll it
+// and stop cleanly. A second signal removes the temporary files of every open AtomicOutput
+// and ends the process at once (exit status 130).
 extern std::atomic<bool> interrupted;
 void install_interrupt_handler();
 
-// An output file written under a temporary name in the same folder and renamed into place
-// on commit(), so readers never see half a file and an existing file survives failures.
-// The constructor checks that the folder is writable (failing with a message naming
-// `option`); the destructor removes the temporary file unless committed.
+// A file a command reads or writes, with the option that named it (for messages).
+struct NamedFile {
+  std::string path, option;
+};
+
+// A temporary file in $TMPDIR (default /tmp) for a command's own use, removed when it goes
+// out of scope (or by a second Ctrl-C).
+class ScratchFile {
+ public:
+  explicit ScratchFile(const std::string& what = "scratch");
+  ~ScratchFile();
+  ScratchFile(const ScratchFile&) = delete;
+  ScratchFile& operator=(const ScratchFile&) = delete;
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+// An output file that never clobbers what it must not, and never shows half a file.
+// A new or regular file is written under a temporary name in the folder of its final target
+// (symbolic links followed, so a link stays a link) and renamed into place on commit(), keeping
+// the old file's permissions; an existing file survives any failure. A device, a FIFO or "-"
+// (standard output) is never replaced: commit() copies the finished bytes into it. The
+// constructor, which runs before any work, refuses a folder, an unwritable place and a file
+// that is one of `keep` (the command's inputs and other outputs; the same file, not just the
+// same name), with one line naming `option`. The destructor removes the temporary file unless
+// committed.
 class AtomicOutput {
  public:
-  AtomicOutput(std::string path, const std::string& option);
+  AtomicOutput(std::string path, std::string option, const std::vector<NamedFile>& keep = {});
   ~AtomicOutput();
   AtomicOutput(const AtomicOutput&) = delete;
   AtomicOutput& operator=(const AtomicOutput&) = delete;
   const std::string& temp_path() const { return temp_; }
+  NamedFile named() const { return {path_, option_}; }
   void commit();
 
  private:
-  std::string path_, temp_;
+  std::string path_, option_, target_, temp_;
+  std::optional<ScratchFile> scratch_;  // the temporary file of a device, FIFO or stdout
+  bool in_place_ = false;  // device, FIFO or stdout: copy into it on commit
   bool committed_ = false;
 };
 
-// Writes `bytes` (a string or a byte vector) to `path` through an AtomicOutput named by
-// `option`.
+// Fails naming the option when one of `inputs` is not an existing file. (For positional lists,
+// where CLI11's own check would run before it reports an unknown option.)
+void require_files(const std::vector<NamedFile>& inputs);
+
+// Fails when `path` (an output) is the same file as one of `keep`.
+void refuse_same_file(const std::string& path, const std::string& option, const std::vector<NamedFile>& keep);
+
+// Writes `bytes` (a string or a byte vector) into an AtomicOutput and commits it.
 template <typename Bytes>
-void write_file(const std::string& path, const std::string& option, const Bytes& bytes) {
-  AtomicOutput out(path, option);
+void write_file(AtomicOutput& out, const Bytes& bytes) {
   {
     std::ofstream f(out.temp_path(), std::ios::binary);
     f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
-    if (!f) fail("cannot write " + path);
+    if (!f) fail("cannot write " + out.named().path);
   }
   out.commit();
 }
+
+// Runs `/usr/bin/python3 tools_dir()/SCRIPT ARGS...` in its own process group; Ctrl-C (the
+// `interrupted` flag) stops it and fails with "interrupted". A non-zero exit fails naming `what`.
+void run_python(const std::string& script, const std::vector<std::string>& args, const std::string& what);
 
 // A progress bar with rate and ETA on stderr, shown only when stderr is a terminal.
 class ProgressBar {

@@ -53,7 +53,6 @@ fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, cons
   if (o.heldout.empty()) fail("--tolerance needs --heldout: an independent table of the same medium (another --seed)");
   if (o.alpha_degree >= 0) fail("--alpha-degree and --tolerance cannot be combined");
   const double tolerance = o.tolerance;
-  if (!(tolerance > 0 && tolerance < 1)) fail("--tolerance must be a TV distance in (0, 1), got " + std::to_string(tolerance));
   Table heldout = read_table(o.heldout);
   if (heldout.alpha_bins != table.alpha_bins || heldout.grid != table.grid || heldout.seed == table.seed)
     fail("--heldout must have the table's grid and alpha bins and another seed");
@@ -79,7 +78,7 @@ fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, cons
   return r;
 }
 
-void run_fit(const FitOptions& o) {
+void run_fit(const FitOptions& o, const CLI::App& cmd) {
   fit::FitSettings settings;
   try {
     settings = fit::parse_model_spec(o.model);
@@ -89,27 +88,37 @@ void run_fit(const FitOptions& o) {
   settings.threads = int(parse_count(o.threads, "--threads", 0, 4096));
   if (o.alpha_degree >= 0 && settings.kind != ModelKind::kSh) fail("--alpha-degree applies to sh models only");
   if (o.alpha_degree < -1 || o.alpha_degree > 64) fail("--alpha-degree must be in 0..64 (or -1: off)");
+  if (cmd.count("--tolerance") && !(o.tolerance > 0 && o.tolerance < 1))
+    fail("--tolerance must be a TV distance in (0, 1), got " + std::to_string(o.tolerance));
+  if (!o.heldout.empty() && !cmd.count("--tolerance")) fail("--heldout applies only with --tolerance");
   settings.alpha_degree = o.alpha_degree;
+
+  // Every output is checked (and claimed) before any work.
+  std::vector<NamedFile> files{{o.table, "the table"}, {o.heldout, "--heldout"}};
+  AtomicOutput out(o.output, "-o", files);
+  files.push_back(out.named());
+  std::optional<AtomicOutput> report_out, pack_out;
+  if (!o.report.empty()) files.push_back(report_out.emplace(o.report, "--report", files).named());
+  if (!o.pack.empty()) pack_out.emplace(o.pack, "--pack", files);
+
   Table table = read_table(o.table);
-  AtomicOutput out(o.output, "-o");
-  install_interrupt_handler();
   settings.cancel = &interrupted;
   fit::FitReport report;
   StfModel model;
   fit::Provenance provenance;
   provenance.model_spec = o.model, provenance.source_table = o.table, provenance.table = &table;
   std::optional<fit::ToleranceFit> tolerant;
-  if (o.tolerance == 0) {
+  if (!cmd.count("--tolerance")) {
     model = fit::fit_table(table, settings, &report);
   } else {
     tolerant = fit_to_tolerance(o, table, settings, provenance);
     model = tolerant->model, report = tolerant->report;
   }
-  if (interrupted) fail("interrupted; no model written");
+  stop_if_interrupted();
   fit::write_model(model, report, provenance, out.temp_path());
+  if (report_out) write_file(*report_out, report_json(report, model, o.model));
+  if (pack_out) write_file(*pack_out, write_pack({PackEntry{"", model}}));
   out.commit();
-  if (!o.report.empty()) write_file(o.report, "--report", report_json(report, model, o.model));
-  if (!o.pack.empty()) write_file(o.pack, "--pack", write_pack({PackEntry{"", model}}));
   if (!o.quiet)
     std::fprintf(stderr, "stf fit: %s size %d in %.3g s, %lld bytes (table %lld bytes) -> %s\n", o.model.c_str(),
                  report.chosen_size, report.fit_time_s, (long long)model.packed_bytes(),
@@ -121,6 +130,8 @@ struct EvalOptions {
 };
 
 void run_eval(const EvalOptions& o) {
+  std::optional<AtomicOutput> json_out;
+  if (!o.json.empty()) json_out.emplace(o.json, "--json", std::vector<NamedFile>{{o.candidate, "the candidate"}, {o.reference, "--reference"}});
   std::string format = fit::file_format(o.candidate);
   if (format != "stf-model" && format != "stf-table")
     fail("'" + o.candidate + "' is neither an stf model nor an stf table");
@@ -134,8 +145,8 @@ void run_eval(const EvalOptions& o) {
     fail(std::string("--reference: ") + e.what());
   }
   std::string json = fit::to_json(ev);
-  if (o.json.empty()) std::fputs(json.c_str(), stdout);
-  else write_file(o.json, "--json", json);
+  if (json_out) write_file(*json_out, json);
+  else std::fputs(json.c_str(), stdout);
   std::fprintf(stderr, "stf eval: tv %.4g (joint %.4g), kl %.4g%s\n", ev.tv, ev.joint_tv, ev.kl,
                ev.model_bytes >= 0 ? (", " + std::to_string(ev.model_bytes) + " model bytes").c_str() : "");
 }
@@ -146,7 +157,7 @@ void add_fit_command(CLI::App& app) {
   auto o = std::make_shared<FitOptions>();
   CLI::App* cmd = app.add_subcommand("fit", "Fit a raw table with vMF lobes or smoothed spherical harmonics");
   cmd->add_option("table", o->table, "Raw table (HDF5)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--model", o->model, "vmf:K, vmf:auto, sh:L or sh:auto")->capture_default_str();
+  cmd->add_option("--model", o->model, "vmf:K, vmf:auto, sh:L or sh:auto (default vmf:4)");
   cmd->add_option("-o,--output", o->output, "Output model (HDF5)")->required();
   cmd->add_option("--report", o->report, "Per-bin diagnostics and model selection as JSON");
   cmd->add_option("--pack", o->pack, "Also write the model as a binary pack for the sampler");
@@ -159,7 +170,7 @@ void add_fit_command(CLI::App& app) {
   cmd->add_option("--heldout", o->heldout, "With --tolerance: an independent table (other seed) that certifies the fit")
       ->check(CLI::ExistingFile);
   cmd->add_flag("--quiet", o->quiet, "No summary line");
-  cmd->callback([o] { run_fit(*o); });
+  cmd->callback([o, cmd] { run_fit(*o, *cmd); });
 }
 
 void add_eval_command(CLI::App& app) {

@@ -1,9 +1,27 @@
 // `stf`: the command line over the stf stages.
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cstdio>
+#include <memory>
+#include <string>
 
 #include "cli.h"
+
+namespace {
+
+// --config files may spell keys as scene files do (alpha_bins) or as the command line does
+// (alpha-bins); both name the same option.
+class ConfigWithUnderscores : public CLI::ConfigTOML {
+ public:
+  std::vector<CLI::ConfigItem> from_config(std::istream& input) const override {
+    std::vector<CLI::ConfigItem> items = CLI::ConfigTOML::from_config(input);
+    for (CLI::ConfigItem& item : items) std::replace(item.name.begin(), item.name.end(), '_', '-');
+    return items;
+  }
+};
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app("stf: shell transport functions for rendering dense media");
@@ -11,6 +29,8 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", "stf " STF_VERSION);
   // Options may come from a TOML file, one [section] per subcommand (data/default_medium.toml).
   app.set_config("--config", "", "Read options from a TOML file, [subcommand] sections");
+  app.config_formatter(std::make_shared<ConfigWithUnderscores>());
+  app.allow_config_extras(CLI::config_extras_mode::error);  // an unknown key is an error, not ignored
   stf::cli::add_precompute_command(app);
   stf::cli::add_fit_command(app);
   stf::cli::add_eval_command(app);
@@ -19,6 +39,8 @@ int main(int argc, char** argv) {
   stf::cli::add_build_command(app);
   stf::cli::add_report_command(app);
   stf::cli::add_plot_command(app);
+  // From the start: Ctrl-C during any stage stops it cleanly (stages poll the flag).
+  stf::cli::install_interrupt_handler();
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -27,6 +49,19 @@ int main(int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::CallForVersion& e) {
     return app.exit(e);
+  } catch (const CLI::ConfigError& e) {
+    const std::string what = e.what(), prefix = "INI was not able to parse ";
+    if (what.rfind(prefix, 0) == 0)
+      std::fprintf(stderr, "stf: error: --config: unknown key '%s'\n", what.substr(prefix.size()).c_str());
+    else
+      std::fprintf(stderr, "stf: error: --config: %s\n", what.c_str());
+    return 2;
+  } catch (const stf::cli::Interrupted& e) {
+    std::fprintf(stderr, "stf: %s\n", e.what());
+    return 130;
+  } catch (const stf::cli::ToleranceNotMet& e) {
+    std::fprintf(stderr, "stf: error: %s\n", e.what());
+    return 3;
   } catch (const std::exception& e) {
     // CLI11's parse errors, stf's own user errors and failures of a stage alike: one line.
     std::fprintf(stderr, "stf: error: %s\n", e.what());

@@ -80,35 +80,44 @@ int alpha_bin(const Table& t, double alpha) { return std::min(int(alpha / kPi * 
 void run_plot(const PlotOptions& o) {
   if (!(o.alpha_deg >= 0 && o.alpha_deg <= 180)) fail("--alpha must be in [0, 180] degrees");
   if (o.width < 64 || o.width > 8192) fail("--width must be in 64..8192");
-  AtomicOutput data(o.output + ".data.h5", "-o");
-  AtomicOutput png(o.output, "-o");
+  std::vector<NamedFile> inputs;
+  for (const std::string& t : o.tables) inputs.push_back({t, "table"});
+  require_files(inputs);
+  inputs.push_back({o.model, "--model"});
+  AtomicOutput png(o.output, "-o", inputs);
+  ScratchFile data;  // what the drawing script reads
   {
     H5::Exception::dontPrint();
-    H5::H5File file(data.temp_path(), H5F_ACC_TRUNC);
+    H5::H5File file(data.path(), H5F_ACC_TRUNC);
     const double alpha = o.alpha_deg * kPi / 180;
     for (std::size_t i = 0; i < o.tables.size(); ++i) {
       Table t = read_table(o.tables[i]);
       std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
       int bin = alpha_bin(t, alpha);
       write_panel(file, int(i), t, *grid, cell_density(t, bin), describe(t, bin, "table"), o.width);
+      stop_if_interrupted();
     }
     if (!o.model.empty()) {
-      // The model integrated over the first table's cells, beside it.
+      // The model integrated over the first table's cells, beside it. A tolerance fit's alpha
+      // bins may be groups of the table's: the table's bin is drawn from the group holding it.
       Table t = read_table(o.tables.front());
       std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
       int bin = alpha_bin(t, alpha);
       StfModel model = fit::read_model(o.model);
-      if (model.bins() != t.alpha_bins) fail("--model has " + std::to_string(model.bins()) + " alpha bins, the table " + std::to_string(t.alpha_bins));
-      std::vector<double> density = fit::model_cell_probabilities(model, bin, fit::QuadratureLevels(*grid));
+      int group = 1;
+      try {
+        group = fit::alpha_group_size(model.alpha_edges, t);
+      } catch (const std::invalid_argument& e) {
+        fail("--model: " + std::string(e.what()));
+      }
+      std::vector<double> density = fit::model_cell_probabilities(model, bin / group, fit::QuadratureLevels(*grid));
       for (std::int64_t c = 0; c < t.cells; ++c) density[c] /= t.solid_angle[c];
       h5::put_attr(file, "side_by_side", 1);
       write_panel(file, int(o.tables.size()), t, *grid, density,
                   describe(t, bin, "model " + o.model.substr(o.model.find_last_of('/') + 1)), o.width);
     }
   }
-  std::string command = "/usr/bin/python3 '" + tools_dir() + "/plot_directions.py' '" +
-                        data.temp_path() + "' '" + png.temp_path() + "'";
-  if (std::system(command.c_str()) != 0) fail("plotting failed: " + command);
+  run_python("plot_directions.py", {data.path(), png.temp_path()}, "plotting");
   png.commit();
 }
 
@@ -118,7 +127,7 @@ void add_plot_command(CLI::App& app) {
   auto o = std::make_shared<PlotOptions>();
   CLI::App* cmd = app.add_subcommand(
       "plot", "Theta-phi plots of exit directions for one alpha (one row per table or model), PNG");
-  cmd->add_option("tables", o->tables, "Raw tables (HDF5)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("tables", o->tables, "Raw tables (HDF5)")->required();
   cmd->add_option("--alpha", o->alpha_deg, "Exit-point angle alpha in degrees")->required();
   cmd->add_option("-o,--output", o->output, "Output image (PNG)")->required();
   cmd->add_option("--width", o->width, "Raster width in pixels")->capture_default_str();
@@ -128,7 +137,7 @@ void add_plot_command(CLI::App& app) {
     try {
       run_plot(*o);
     } catch (const H5::Exception& e) {
-      fail("cannot write plot data: " + e.getDetailMsg());
+      fail("cannot write the plot's data to a temporary file: " + e.getDetailMsg());
     }
   });
 }

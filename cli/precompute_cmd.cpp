@@ -15,13 +15,14 @@ namespace {
 struct PrecomputeOptions {
   Medium medium;
   PrecomputeSettings settings;
-  std::string paths = "1e6", seed = "1", threads = "0", max_scatter = "-1";
+  std::string alpha_bins = "90", paths = "1e6", seed = "1", threads = "0", max_scatter = "-1";
   bool quiet = false;
   std::string output;
 };
 
 void run_precompute(const PrecomputeOptions& o) {
   PrecomputeSettings s = o.settings;
+  s.alpha_bins = int(parse_count(o.alpha_bins, "--alpha-bins", 1, 100000));
   s.paths = parse_count(o.paths, "--paths", 1, std::int64_t(1) << 50);
   s.seed = parse_count(o.seed, "--seed", 0, INT64_MAX);
   s.threads = int(parse_count(o.threads, "--threads", 0, 4096));
@@ -29,16 +30,14 @@ void run_precompute(const PrecomputeOptions& o) {
   if (auto error = validate(o.medium, s)) fail(*error);
 
   AtomicOutput out(o.output, "-o");
-  install_interrupt_handler();
   ProgressBar bar("precompute", o.quiet);
   auto table = precompute(o.medium, s, &interrupted,
                           [&](std::int64_t done, std::int64_t total, double seconds) {
                             bar.update(done, total, seconds);
                           });
   bar.finish();
-  if (!table) fail("interrupted; no table written");
+  if (!table) throw Interrupted();
   write_table(*table, out.temp_path());
-  if (interrupted) fail("interrupted; no table written");
   out.commit();
   if (!o.quiet) {
     double n = double(table->paths);
@@ -61,7 +60,7 @@ void add_precompute_command(CLI::App& app) {
   cmd->add_option("--sigma-a", o->medium.sigma_a, "Absorption coefficient (>= 0)")->required();
   cmd->add_option("--g", o->medium.g, "Henyey-Greenstein asymmetry, in (-1, 1)")->required();
   cmd->add_option("--radius", o->medium.radius, "Sphere radius (> 0)")->capture_default_str();
-  cmd->add_option("--alpha-bins", o->settings.alpha_bins, "Bins of the exit-point angle alpha on [0, pi]")
+  cmd->add_option("--alpha-bins", o->alpha_bins, "Bins of the exit-point angle alpha on [0, pi]")
       ->capture_default_str();
   cmd->add_option("--grid", o->settings.grid, "Direction cells: csc:N (COBE sky cube) or healpix:NSIDE")
       ->capture_default_str();

@@ -8,8 +8,11 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <sys/stat.h>
 
 #include "cli.h"
@@ -80,44 +83,85 @@ std::vector<std::string> pack_media(const std::string& path, int n) {
   return media;
 }
 
+// A report folder filled as a whole: files are made in a working folder beside it and moved
+// in by commit(); on failure or Ctrl-C the working folder goes and `folder` is left as it was.
+class ReportFolder {
+ public:
+  explicit ReportFolder(std::string folder) : folder_(std::move(folder)) {
+    while (folder_.size() > 1 && folder_.back() == '/') folder_.pop_back();
+    struct stat st;
+    if (::stat(folder_.c_str(), &st) == 0 && !S_ISDIR(st.st_mode))
+      fail("-o '" + folder_ + "' exists and is not a folder");
+    work_ = folder_ + ".tmp-" + std::to_string(::getpid());
+    if (::mkdir(work_.c_str(), 0755) != 0)
+      fail("-o '" + folder_ + "': cannot create a folder beside it: " + std::strerror(errno));
+  }
+  ~ReportFolder() {
+    std::error_code ignored;
+    std::filesystem::remove_all(work_, ignored);
+  }
+  const std::string& work() const { return work_; }
+  void commit() {
+    stop_if_interrupted();
+    namespace fs = std::filesystem;
+    std::error_code error;
+    fs::create_directories(folder_, error);
+    if (error) fail("-o '" + folder_ + "': " + error.message());
+    for (const fs::directory_entry& e : fs::directory_iterator(work_)) {
+      fs::rename(e.path(), fs::path(folder_) / e.path().filename(), error);
+      if (error) fail("-o '" + folder_ + "': cannot move " + e.path().filename().string() + " in: " + error.message());
+    }
+  }
+
+ private:
+  std::string folder_, work_;
+};
+
 void run_stress(const ReportOptions& o) {
   const int threads = int(parse_count(o.threads, "--threads", 0, 4096));
+  std::optional<ReportFolder> folder;
+  if (!o.output.empty()) folder.emplace(o.output);
   std::string table = scene::stress_table_header() + "\n";
-  std::fprintf(stderr, "%s\n", scene::stress_table_header().c_str());
+  std::printf("%s\n", scene::stress_table_header().c_str());
   int failed = 0;
   for (const scene::StressCase& c : scene::stress_cases()) {
+    stop_if_interrupted();
     scene::StressResult r = scene::run_stress_case(c, 400, 20000, threads);
     failed += !r.finite;
-    std::fprintf(stderr, "%s\n", scene::stress_table_row(r).c_str());
+    std::printf("%s\n", scene::stress_table_row(r).c_str());
+    std::fflush(stdout);
     table += scene::stress_table_row(r) + "\n";
   }
-  if (!o.output.empty()) {
-    ::mkdir(o.output.c_str(), 0755);
-    std::ofstream(o.output + "/stress.md") << "# Stiff and extreme sweep (400 paths, at most 20000 collisions each)\n\n```\n"
-                                            << table << "```\n";
-  }
   if (failed) fail(std::to_string(failed) + " stress cases produced non-finite numbers");
+  if (folder) {
+    std::ofstream(folder->work() + "/stress.md")
+        << "# Stiff and extreme sweep (400 paths, at most 20000 collisions each)\n\n```\n" << table << "```\n";
+    folder->commit();
+  }
 }
 
 void run_report(const ReportOptions& o) {
   if (o.stress) return run_stress(o);
+  if (o.max_media < 1) fail("--max-media must be at least 1, got " + std::to_string(o.max_media));
   if (o.output.empty()) fail("-o must name the report folder");
   std::vector<std::string> media;
   if (!o.pack.empty()) media = pack_media(o.pack, o.max_media);
   for (const std::string& m : o.media) media.push_back(medium_json(m));
   if (media.empty()) fail("give a pack or --medium NAME:SIGMA_S:SIGMA_A:G");
-  ::mkdir(o.output.c_str(), 0755);
-  const std::string list = o.output + "/media.json";
+  refuse_same_file(o.output, "-o", {{o.pack, "the pack"}});
+  ReportFolder folder(o.output);
+  const std::string list = folder.work() + "/media.json";
   {
     std::ofstream f(list);
     f << "[";
     for (std::size_t i = 0; i < media.size(); ++i) f << (i ? ", " : "") << media[i];
     f << "]\n";
-    if (!f) fail("-o '" + o.output + "' is not writable");
+    if (!f) fail("-o '" + o.output + "': cannot write media.json");
   }
-  std::string command = "/usr/bin/python3 '" + tools_dir() + "/report.py' --stf '" + self_path() + "' --media '" +
-                        list + "' --out '" + o.output + "'" + (o.full ? " --full" : "");
-  if (std::system(command.c_str()) != 0) fail("report failed: " + command);
+  std::vector<std::string> args{"--stf", self_path(), "--media", list, "--out", folder.work()};
+  if (o.full) args.push_back("--full");
+  run_python("report.py", args, "report");
+  folder.commit();
 }
 
 }  // namespace

@@ -44,12 +44,16 @@ struct PackOptions {
 
 void run_pack(const PackOptions& o) {
   if (!o.names.empty() && o.names.size() != o.models.size()) fail("--name must be given once per model or not at all");
+  std::vector<NamedFile> inputs;
+  for (const std::string& m : o.models) inputs.push_back({m, "model"});
+  require_files(inputs);
+  AtomicOutput out(o.output, "-o", inputs);
   std::vector<PackEntry> entries;
   for (std::size_t i = 0; i < o.models.size(); ++i) {
     if (fit::file_format(o.models[i]) != "stf-model") fail("'" + o.models[i] + "' is not an stf model");
     entries.push_back({o.names.empty() ? "" : o.names[i], fit::read_model(o.models[i])});
   }
-  write_file(o.output, "-o", write_pack(entries));
+  write_file(out, write_pack(entries));
 }
 
 struct SampleOptions {
@@ -57,9 +61,8 @@ struct SampleOptions {
   std::string count = "1e4", seed = "1";
 };
 
-void write_samples(const std::string& path, const std::vector<double>& point, const std::vector<double>& direction,
+void write_samples(AtomicOutput& out, const std::vector<double>& point, const std::vector<double>& direction,
                    const std::vector<double>& pdf, double escape) {
-  AtomicOutput out(path, "-o");
   {
     H5::Exception::dontPrint();
     H5::H5File file(out.temp_path(), H5F_ACC_TRUNC);
@@ -73,41 +76,56 @@ void write_samples(const std::string& path, const std::vector<double>& point, co
   out.commit();
 }
 
-void run_sample(const SampleOptions& o) {
+// Exit points and directions of a samples file (`stf sample -o` layout) for --eval.
+void read_points(const std::string& path, std::vector<double>& p, std::vector<double>& d) {
+  try {
+    H5::Exception::dontPrint();
+    H5::H5File in(path, H5F_ACC_RDONLY);
+    for (const char* name : {"/samples", "/samples/exit_point", "/samples/exit_direction"})
+      if (!in.nameExists(name))
+        fail("--eval: '" + path + "' has no " + name + " (it needs the layout of `stf sample -o`)");
+    p = h5::get_dataset(in, "/samples/exit_point", {});
+    d = h5::get_dataset(in, "/samples/exit_direction", {});
+  } catch (const H5::Exception& e) {
+    fail("--eval: cannot read '" + path + "' as HDF5: " + e.getDetailMsg());
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    fail("--eval: " + std::string(e.what()));
+  }
+  if (p.size() != d.size() || p.size() % 3 != 0) fail("--eval: exit_point and exit_direction must both be [N, 3]");
+}
+
+void run_sample(const SampleOptions& o, const CLI::App& cmd) {
+  if (!o.eval.empty() && cmd.count("--count")) fail("--count and --eval exclude each other: --eval evaluates given points");
+  if (!o.eval.empty() && cmd.count("--seed")) fail("--seed and --eval exclude each other: --eval draws nothing");
+  const std::int64_t n = parse_count(o.count, "--count", 1, std::int64_t(1) << 32);
+  std::uint64_t state = std::uint64_t(parse_count(o.seed, "--seed", 0, INT64_MAX));
+  AtomicOutput out(o.output, "-o", {{o.model, "the model"}, {o.eval, "--eval"}});
   ShellSampler sampler(load_model(o.model));
   std::vector<double> point, direction, pdf;
   if (!o.eval.empty()) {
-    std::vector<double> p, d;
-    try {
-      H5::Exception::dontPrint();
-      H5::H5File in(o.eval, H5F_ACC_RDONLY);
-      p = h5::get_dataset(in, "/samples/exit_point", {});
-      d = h5::get_dataset(in, "/samples/exit_direction", {});
-    } catch (const std::exception& e) {
-      fail("--eval: " + std::string(e.what()));
-    } catch (const H5::Exception& e) {
-      fail("--eval: cannot read " + o.eval + ": " + e.getDetailMsg());
-    }
-    if (p.size() != d.size() || p.size() % 3 != 0) fail("--eval: exit_point and exit_direction must both be [N, 3]");
-    for (std::size_t i = 0; i < p.size(); i += 3) {
-      Vec3 y{p[i], p[i + 1], p[i + 2]}, w{d[i], d[i + 1], d[i + 2]};
+    read_points(o.eval, point, direction);
+    for (std::size_t i = 0; i < point.size(); i += 3) {
+      Vec3 y{point[i], point[i + 1], point[i + 2]}, w{direction[i], direction[i + 1], direction[i + 2]};
       bool unit = std::abs(length(y) - 1) < 1e-6 && std::abs(length(w) - 1) < 1e-6;
       pdf.push_back(unit ? sampler.pdf(y, w) : 0.0);  // off the domain: no support
+      if (i % (3 << 16) == 0) stop_if_interrupted();
     }
-    write_samples(o.output, p, d, pdf, sampler.escape_probability());
+    write_samples(out, point, direction, pdf, sampler.escape_probability());
     return;
   }
-  const std::int64_t n = parse_count(o.count, "--count", 1, std::int64_t(1) << 32);
-  std::uint64_t state = std::uint64_t(parse_count(o.seed, "--seed", 0, INT64_MAX));
   auto u = [&] { return double(splitmix64(state) >> 11) * 0x1p-53; };
+  point.reserve(3 * std::size_t(n)), direction.reserve(3 * std::size_t(n)), pdf.reserve(std::size_t(n));
   for (std::int64_t i = 0; i < n; ++i) {
+    if (i % (1 << 16) == 0) stop_if_interrupted();
     double u0 = u(), u1 = u(), u2 = u(), u3 = u();
     ExitSample s = sampler.sample(u0, u1, u2, u3);
     point.insert(point.end(), {s.point.x, s.point.y, s.point.z});
     direction.insert(direction.end(), {s.direction.x, s.direction.y, s.direction.z});
     pdf.push_back(s.pdf);
   }
-  write_samples(o.output, point, direction, pdf, sampler.escape_probability());
+  write_samples(out, point, direction, pdf, sampler.escape_probability());
 }
 
 }  // namespace
@@ -115,7 +133,7 @@ void run_sample(const SampleOptions& o) {
 void add_pack_command(CLI::App& app) {
   auto o = std::make_shared<PackOptions>();
   CLI::App* cmd = app.add_subcommand("pack", "Pack fitted models into one compact binary file for the sampler");
-  cmd->add_option("models", o->models, "Fitted models (HDF5)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("models", o->models, "Fitted models (HDF5)")->required();
   cmd->add_option("--name", o->names, "A name per model (e.g. the medium's)");
   cmd->add_option("-o,--output", o->output, "Output pack")->required();
   cmd->callback([o] { run_pack(*o); });
@@ -130,7 +148,7 @@ void add_sample_command(CLI::App& app) {
   cmd->add_option("--eval", o->eval, "Evaluate the pdf at /samples/exit_point, /samples/exit_direction of this file")
       ->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", o->output, "Output samples (HDF5)")->required();
-  cmd->callback([o] { run_sample(*o); });
+  cmd->callback([o, cmd] { run_sample(*o, *cmd); });
 }
 
 }  // namespace stf::cli

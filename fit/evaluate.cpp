@@ -101,11 +101,13 @@ Evaluation evaluate(const StfModel& m, const Table& reference, const std::vector
     return std::pair(m.alpha_probability[b / f] * area_share(reference, b, f), p);
   });
   if (chi2_dof.size() == ev.per_alpha.size()) {
-    ev.chi2_dof = 0;
+    // Over the bins that have a value (fitted bins; borrowed and empty ones have -1).
+    double sum = 0, weight = 0;
     for (std::size_t b = 0; b < chi2_dof.size(); ++b) {
       ev.per_alpha[b].chi2_dof = chi2_dof[b];
-      ev.chi2_dof += ev.per_alpha[b].weight * chi2_dof[b];
+      if (chi2_dof[b] >= 0) sum += ev.per_alpha[b].weight * chi2_dof[b], weight += ev.per_alpha[b].weight;
     }
+    ev.chi2_dof = weight > 0 ? sum / weight : -1;
   }
   ev.model_bytes = m.packed_bytes();
   ev.table_bytes = std::int64_t(reference.alpha_bins) * reference.cells * 4;

@@ -174,6 +174,9 @@ double difference_error(const Table& t, int half, const HeldOut& a, const HeldOu
   return std::sqrt(std::max(var, 0.0));
 }
 
+// Set when the user interrupted: partial fits must not be used.
+bool cancelled(const FitSettings& s) { return s.cancel && s.cancel->load(); }
+
 const std::vector<double> kSmoothing = {0, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1};
 
 // Fits on half 0, scores on half 1. For SH, also picks the smoothing t with the lowest
@@ -189,6 +192,7 @@ HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const D
   BinFits fits = fit_bins(t, 0, s.kind, size, levels, projector.get(), s);
   HeldOut best;
   best_t = 0;
+  if (cancelled(s)) return best;  // bins were skipped: nothing to score
   for (double smoothing : s.kind == ModelKind::kSh ? kSmoothing : std::vector<double>{0}) {
     std::vector<std::vector<double>> p(t.alpha_bins);
     for_each_bin(t.alpha_bins, s,
@@ -252,6 +256,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
       double best_t = 0;
       scores.push_back(heldout_for_size(t, s, candidate, *grid, levels, best_t));
       ts.push_back(best_t);
+      if (cancelled(s)) return {};
     }
     std::size_t best = 0;
     for (std::size_t i = 1; i < scores.size(); ++i)
@@ -271,6 +276,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   std::unique_ptr<ShProjector> projector;
   if (s.kind == ModelKind::kSh) projector = std::make_unique<ShProjector>(*grid, size);
   BinFits fits = fit_bins(t, -1, s.kind, size, levels, projector.get(), s);
+  if (cancelled(s)) return {};
 
   StfModel m;
   m.kind = s.kind;
@@ -317,7 +323,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
       d.components = 0;
       for (int k = 0; k < size; ++k) d.components += m.vmf[std::size_t(b) * size + k].weight > 0;
     }
-    if (d.escapes <= 0) return;
+    if (d.escapes <= 0 || m.status[b] != BinStatus::kFitted) return;
     std::vector<double> p = s.kind == ModelKind::kVmf
                                 ? bin_probabilities(fits, b, s.kind, size, 0, levels, {})
                                 : density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, w); },

@@ -34,7 +34,9 @@ struct BinDiagnostics {
   double escapes = 0;   // the bin's escaped weight in the table
   int components = 0;   // lobes with weight, or the band limit
   double deviance = 0;  // Poisson deviance against the table
-  double chi2_dof = 0;  // Pearson chi^2 per degree of freedom against the table
+  // Pearson chi^2 per degree of freedom against the table, in fitted bins only: -1 in bins
+  // that borrow a neighbour's model or are empty (their model was not fitted to their counts).
+  double chi2_dof = -1;
 };
 
 struct FitReport {

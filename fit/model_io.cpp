@@ -139,6 +139,7 @@ StfModel read_model(const std::string& path) {
     for (std::int32_t s : get_int_dataset(file, "/alpha/status", {bins})) m.status.push_back(BinStatus(s));
     if (m.kind == ModelKind::kVmf) {
       m.lobes = get_int(file.openGroup("/vmf"), "lobes");
+      if (m.lobes < 1 || m.lobes > 64) throw std::runtime_error("vMF lobe count out of range");
       const hsize_t k = hsize_t(m.lobes);
       std::vector<double> w = get_dataset(file, "/vmf/weight", {bins, k});
       std::vector<double> kappa = get_dataset(file, "/vmf/kappa", {bins, k});
@@ -157,6 +158,7 @@ StfModel read_model(const std::string& path) {
         m.sh_chebyshev = get_dataset(file, "/sh/chebyshev", {hsize_t(m.alpha_degree + 1), hsize_t(sh_count(m.band_limit))});
       m.rebuild_sh_tables();
     }
+    if (std::string why = model_error(m); !why.empty()) throw std::runtime_error(path + ": " + why);
     return m;
   } catch (const H5::Exception& e) {
     throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());

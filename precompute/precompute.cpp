@@ -34,8 +34,8 @@ std::optional<std::string> validate(const Medium& m, const PrecomputeSettings& s
     return "--radius must be a finite number > 0, got " + number(m.radius);
   if (!(m.sigma_t() > 0))
     return "--sigma-s and --sigma-a must not both be 0 (a vacuum has no table)";
-  if (!(std::isfinite(m.tau()) && m.tau() <= 1e7))
-    return "--radius times (--sigma-s + --sigma-a) must be at most 1e7, got " + number(m.tau());
+  if (!(std::isfinite(m.tau()) && m.tau() <= kMaxTau))
+    return "--radius times (--sigma-s + --sigma-a) must be at most " + number(kMaxTau) + ", got " + number(m.tau());
   if (s.alpha_bins < 1 || s.alpha_bins > 100000)
     return "--alpha-bins must be in 1..100000, got " + std::to_string(s.alpha_bins);
   if (s.paths < 1) return "--paths must be at least 1, got " + std::to_string(s.paths);

@@ -11,6 +11,9 @@
 
 namespace stf {
 
+// Largest optical radius a table may have (tau = (sigma_s + sigma_a) * radius).
+inline constexpr double kMaxTau = 1e7;
+
 struct PrecomputeSettings {
   int alpha_bins = 90;
   std::string grid = "healpix:16";

@@ -2,9 +2,11 @@
 
 #include <H5Cpp.h>
 
+#include <cmath>
 #include <stdexcept>
 
 #include "h5io.h"
+#include "stf/vec3.h"
 
 namespace stf {
 
@@ -64,6 +66,41 @@ void write_table(const Table& t, const std::string& path) {
   }
 }
 
+std::string table_error(const Table& t) {
+  const Medium& m = t.medium;
+  if (!(std::isfinite(m.sigma_s) && std::isfinite(m.sigma_a) && m.sigma_s >= 0 && m.sigma_a >= 0 && m.sigma_t() > 0 &&
+        std::isfinite(m.radius) && m.radius > 0 && m.g > -1 && m.g < 1))
+    return "medium attributes out of range (sigma_s, sigma_a >= 0 and not both 0, radius > 0, g in (-1, 1))";
+  if (t.paths < 1 || t.alpha_bins < 1 || t.cells < 1) return "paths, alpha bins and cells must be at least 1";
+  auto count = [](double w) { return std::isfinite(w) && w >= 0; };
+  if (!count(t.escaped_weight) || !count(t.absorbed_weight) || !count(t.truncated_weight))
+    return "escaped, absorbed and truncated weights must be finite and >= 0";
+  const double paths = double(t.paths);
+  if (std::abs(t.escaped_weight + t.absorbed_weight + t.truncated_weight - paths) > 1e-9 * paths)
+    return "escaped + absorbed + truncated weight is not the number of paths";
+  double escaped = 0;
+  for (const auto& half : t.weight_half)
+    for (double w : half) {
+      if (!count(w)) return "/escape/weight holds a negative or non-finite weight";
+      escaped += w;
+    }
+  if (std::abs(escaped - t.escaped_weight) > 1e-9 * paths) return "/escape/weight does not sum to escaped_weight";
+  const auto& e = t.alpha_edges;
+  if (e.front() != 0 || std::abs(e.back() - kPi) > 1e-12) return "/escape/alpha_edges must run from 0 to pi";
+  for (std::size_t b = 0; b + 1 < e.size(); ++b)
+    if (!(e[b + 1] > e[b])) return "/escape/alpha_edges must increase";
+  double total = 0;
+  for (std::int64_t c = 0; c < t.cells; ++c) {
+    const auto& d = t.direction[c];
+    if (!(t.solid_angle[c] > 0 && std::isfinite(t.solid_angle[c])))
+      return "/grid/solid_angle holds a cell that is not > 0 and finite";
+    if (!(std::abs(d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - 1) < 1e-6)) return "/grid/direction holds a non-unit vector";
+    total += t.solid_angle[c];
+  }
+  if (std::abs(total - 4 * kPi) > 1e-6 * 4 * kPi) return "/grid/solid_angle does not sum to 4 pi";
+  return "";
+}
+
 Table read_table(const std::string& path) {
   try {
     H5::Exception::dontPrint();
@@ -100,6 +137,7 @@ Table read_table(const std::string& path) {
     std::vector<double> dir = get_dataset(file, "/grid/direction", {dims[1], 3});
     t.direction.resize(dims[1]);
     for (std::size_t i = 0; i < dims[1]; ++i) t.direction[i] = {dir[3 * i], dir[3 * i + 1], dir[3 * i + 2]};
+    if (std::string why = table_error(t); !why.empty()) throw std::runtime_error(path + ": " + why);
     return t;
   } catch (const H5::Exception& e) {
     throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());

@@ -42,7 +42,11 @@ struct Table {
 
 // Writes `table` to `path` (replacing it). Throws std::runtime_error on failure.
 void write_table(const Table& table, const std::string& path);
-// Reads a table written by write_table (format_version 1). Throws std::runtime_error.
+// Why `t` is not a consistent table (values, not just shapes: non-finite or negative weights,
+// totals that do not add up, bad edges or cells), or empty when it is.
+std::string table_error(const Table& t);
+// Reads a table written by write_table (format_version 1) and checks it with table_error.
+// Throws std::runtime_error.
 Table read_table(const std::string& path);
 
 }  // namespace stf

@@ -117,6 +117,14 @@ Plan make_plan(const Scene& scene, const std::string& cache_dir) {
   return plan;
 }
 
+std::vector<const PlanEntry*> unmet_entries(const Plan& plan) {
+  std::vector<const PlanEntry*> unmet;
+  if (plan.settings.tolerance > 0)
+    for (const PlanEntry& e : plan.entries)
+      if (e.action != "skip" && e.resolution.measured && !e.resolution.tolerance_met) unmet.push_back(&e);
+  return unmet;
+}
+
 std::string plan_json(const Plan& plan) {
   std::ostringstream s;
   s << "{\n  \"settings\": {\"paths\": " << plan.settings.paths << ", \"tolerance\": "
@@ -130,6 +138,11 @@ std::string plan_json(const Plan& plan) {
       << ", \"action\": \"" << e.action << "\", \"reason\": \"" << e.reason << "\", \"media\": [";
     for (std::size_t j = 0; j < e.media.size(); ++j) s << (j ? ", " : "") << "\"" << e.media[j] << "\"";
     s << "]";
+    const bool certified = plan.settings.tolerance > 0 && e.resolution.measured;
+    if (e.action != "skip")
+      s << ", \"tolerance_met\": " << (certified ? (e.resolution.tolerance_met ? "true" : "false") : "null")
+        << ", \"tv_bound\": "
+        << (certified && std::isfinite(e.resolution.tv_bound) ? fmt(e.resolution.tv_bound) : "null");
     if (!e.key.empty()) {
       const Resolution& r = e.resolution;
       s << ", \"key\": \"" << e.key << "\",\n     \"resolution\": {\"chosen\": " << (r.measured ? "true" : "false")

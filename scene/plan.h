@@ -50,7 +50,12 @@ struct Plan {
 };
 
 Plan make_plan(const Scene& scene, const std::string& cache_dir);
+// The plan as JSON: per entry also `tolerance_met` and `tv_bound` (null until certified, or
+// without a tolerance).
 std::string plan_json(const Plan& plan);
+// Entries certified under the scene's tolerance but not within it (their bound is the lowest
+// the limits allowed).
+std::vector<const PlanEntry*> unmet_entries(const Plan& plan);
 std::string plan_table(const Plan& plan);
 
 // Cache files of an entry.

@@ -3,14 +3,22 @@
 #include <toml.hpp>
 
 #include <cmath>
+#include <cstdio>
 #include <set>
 
 #include "fit_table.h"
 #include "grid.h"
+#include "precompute.h"
 
 namespace stf::scene {
 
 namespace {
+
+std::string fmt(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
 
 // "file:line: what" for a value of the scene.
 [[noreturn]] void error_at(const toml::value& v, const std::string& what) {
@@ -74,7 +82,7 @@ Settings read_settings(const toml::value& t) {
   }
   if (t.contains("alpha_bins")) {
     double b = number(t.at("alpha_bins"), "settings.alpha_bins");
-    expect(b >= 1 && b <= 100000 && b == std::floor(b), t.at("alpha_bins"), "settings.alpha_bins: must be in 1..100000");
+    expect(b >= 1 && b <= 100000 && b == std::floor(b), t.at("alpha_bins"), "settings.alpha_bins: must be a whole number in 1..100000");
     s.alpha_bins = int(b);
   }
   if (t.contains("model")) {
@@ -85,7 +93,11 @@ Settings read_settings(const toml::value& t) {
       error_at(t.at("model"), std::string("settings.model: ") + e.what());
     }
   }
-  if (t.contains("seed")) s.seed = std::int64_t(number(t.at("seed"), "settings.seed"));
+  if (t.contains("seed")) {
+    double seed = number(t.at("seed"), "settings.seed");
+    expect(seed >= 0 && seed <= 9e18 && seed == std::floor(seed), t.at("seed"), "settings.seed: must be a whole number >= 0");
+    s.seed = std::int64_t(seed);
+  }
   if (t.contains("tau_skip")) {
     s.tau_skip = number(t.at("tau_skip"), "settings.tau_skip");
     expect(s.tau_skip > 0 && std::isfinite(s.tau_skip), t.at("tau_skip"), "settings.tau_skip: must be > 0");
@@ -129,6 +141,12 @@ Medium read_medium(const toml::value& t, std::size_t index) {
     expect(m.radius_min > 0 && m.radius_min <= m.radius_max && std::isfinite(m.radius_max), t.at("radius_max"),
            where + "radius_min, radius_max: need 0 < radius_min <= radius_max");
   }
+  // Checked here, not in the middle of a build: the largest table the plan could ask for.
+  const char* key = t.contains("size") ? "size" : "radius_max";
+  const double tau_max = (m.sigma_s + m.sigma_a) * m.radius_max;
+  expect(tau_max <= kMaxTau, t.at(key),
+         where + key + ": the largest optical radius (sigma_s + sigma_a) * radius_max is " + fmt(tau_max) +
+             ", above the largest table stf computes (tau " + fmt(kMaxTau) + ")");
   return m;
 }
 

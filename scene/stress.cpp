@@ -21,6 +21,8 @@ std::vector<StressCase> stress_cases() {
 }
 
 namespace {
+constexpr double kPoorFitChi2Dof = 100;
+
 void check(bool ok, const char* what, StressResult& r) {
   if (ok || !r.finite) return;
   r.finite = false;
@@ -52,10 +54,14 @@ StressResult run_stress_case(const StressCase& c, long paths, long max_scatter, 
   for (const VmfLobe& l : m.vmf) check(std::isfinite(l.kappa) && std::isfinite(l.weight) && std::isfinite(l.mean.z), "model", r);
   double escapes = 0;
   for (const fit::BinDiagnostics& d : report.bins) {
+    if (d.chi2_dof < 0) continue;  // not fitted to its own escapes
     r.fit_chi2_dof += d.escapes * d.chi2_dof;
     escapes += d.escapes;
   }
   r.fit_chi2_dof = escapes > 0 ? r.fit_chi2_dof / escapes : 0;
+  check(std::isfinite(r.fit_chi2_dof), "chi2/dof", r);
+  // A fit this far off its own table is not ok, even if every number is finite.
+  if (r.finite && r.fit_chi2_dof > kPoorFitChi2Dof) r.status = "poor fit";
 
   std::vector<PackEntry> entries;
   std::string error;

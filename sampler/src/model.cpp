@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "stf/pack.h"
 #include "stf/sh.h"
@@ -58,6 +59,52 @@ void StfModel::rebuild_sh_tables() {
     for (int i = 0; i < nz * nphi; ++i)
       table[i] = total > 0 ? float(table[i] / total) : float(1 / (4 * kPi));
   }
+}
+
+namespace {
+bool finite_in(double v, double lo, double hi) { return std::isfinite(v) && v >= lo && v <= hi; }
+}  // namespace
+
+std::string model_error(const StfModel& m) {
+  const int bins = m.bins();
+  if (bins < 1) return "no alpha bins";
+  if (!(finite_in(m.tau, 0, 1e300) && m.tau > 0 && finite_in(m.albedo, 0, 1) && m.g > -1 && m.g < 1))
+    return "medium out of range (tau > 0, albedo in [0, 1], g in (-1, 1))";
+  if (!finite_in(m.escape_probability, 0, 1) || !finite_in(m.absorbed_fraction, 0, 1) ||
+      !finite_in(m.truncated_fraction, 0, 1))
+    return "escape, absorbed and truncated fractions must be in [0, 1]";
+  if (int(m.alpha_edges.size()) != bins + 1 || int(m.status.size()) != bins) return "alpha bins of unequal counts";
+  if (m.alpha_edges.front() != 0 || std::abs(m.alpha_edges.back() - kPi) > 1e-9) return "alpha edges must run from 0 to pi";
+  double total = 0;
+  for (int b = 0; b < bins; ++b) {
+    if (!(m.alpha_edges[b + 1] > m.alpha_edges[b])) return "alpha edges must increase";
+    if (!finite_in(m.alpha_probability[b], 0, 1)) return "alpha probability negative or not finite";
+    if (int(m.status[b]) < 0 || int(m.status[b]) > 2) return "bin status out of range";
+    total += m.alpha_probability[b];
+  }
+  if (std::abs(total - 1) > 1e-6) return "alpha probabilities do not sum to 1";
+  if (m.kind == ModelKind::kVmf) {
+    if (m.lobes < 1 || m.vmf.size() != std::size_t(bins) * m.lobes) return "vMF lobes of the wrong count";
+    for (int b = 0; b < bins; ++b) {
+      double weights = 0;
+      for (int k = 0; k < m.lobes; ++k) {
+        const VmfLobe& l = m.vmf[std::size_t(b) * m.lobes + k];
+        if (!finite_in(l.weight, 0, 1) || !finite_in(l.kappa, 0, kMaxKappa))
+          return "vMF weight or kappa out of range (weight in [0, 1], kappa in [0, " + std::to_string(kMaxKappa) + "])";
+        if (!(std::abs(length(l.mean) - 1) < 1e-6)) return "vMF mean direction is not a unit vector";
+        weights += l.weight;
+      }
+      if (std::abs(weights - 1) > 1e-6) return "vMF weights of a bin do not sum to 1";
+    }
+    return "";
+  }
+  const std::size_t count = std::size_t(sh_count(m.band_limit));
+  if (m.band_limit < 0 || m.sh.size() != std::size_t(bins) * count) return "SH coefficients of the wrong count";
+  for (double c : m.sh)
+    if (!std::isfinite(c)) return "SH coefficient not finite";
+  for (float v : m.sh_table)
+    if (!std::isfinite(v)) return "SH density not finite";
+  return "";
 }
 
 std::int64_t StfModel::packed_bytes() const { return 32 + record_bytes(*this, 0); }

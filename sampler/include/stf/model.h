@@ -59,6 +59,10 @@ struct StfModel {
   std::int64_t packed_bytes() const;
 };
 
+// Why `m` is not a usable model (values out of range or not finite, inconsistent sizes), or
+// empty when it is. Loaders check once, so sampling code can trust what it is given.
+std::string model_error(const StfModel& m);
+
 // Cell of the equal-area (z, phi) grid with nz rows in z and 2 nz columns in phi.
 int equal_area_cell(int nz, const Vec3& w);
 

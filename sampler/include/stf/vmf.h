@@ -8,6 +8,9 @@
 
 namespace stf {
 
+// Largest concentration a model may hold (a lobe about 3e-5 rad wide); loaders refuse more.
+inline constexpr double kMaxKappa = 1e9;
+
 struct VmfLobe {
   double weight = 1;  // mixture weight; the weights of a mixture sum to 1
   double kappa = 0;   // concentration >= 0 (0: uniform)
