@@ -28,6 +28,12 @@ int main(int argc, char** argv) {
     return 1;
   }
   const std::string medium = argc > 2 ? argv[2] : pack.front().name;
+  bool known = false;
+  for (const stf::PackEntry& e : pack) known = known || e.name == medium;
+  if (!known) {
+    std::fprintf(stderr, "walk_medium: the pack has no medium '%s' (usage: walk_medium PACK [MEDIUM] ...)\n", medium.c_str());
+    return 2;
+  }
   const double sigma_t = argc > 3 ? std::atof(argv[3]) : 10.0;
   const double big_radius = argc > 4 ? std::atof(argv[4]) : 20.0;
   const int paths = argc > 5 ? std::atoi(argv[5]) : 1000;

@@ -13,58 +13,13 @@
 #include <string>
 #include <thread>
 
+#include "cli_fixture.h"
 #include "h5io.h"
 #include "table.h"
 
-namespace fs = std::filesystem;
 
 namespace {
 
-struct Result {
-  int status;
-  std::string err;
-};
-
-class Cli : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = fs::path(::testing::TempDir()) / ("stf_cli_" + std::to_string(::getpid()) + "_" +
-                                            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  Result stf(const std::string& args, std::string* out_text = nullptr) {
-    std::string err = (dir_ / "stderr.txt").string(), out = (dir_ / "stdout.txt").string();
-    std::string cmd = std::string(STF_BINARY) + " " + args + " 2>'" + err + "' >'" + out + "'";
-    int raw = std::system(cmd.c_str());
-    auto slurp = [](const std::string& path) {
-      std::ifstream in(path);
-      std::stringstream ss;
-      ss << in.rdbuf();
-      return ss.str();
-    };
-    std::string err_text = slurp(err);
-    if (out_text) *out_text = slurp(out);
-    fs::remove(err);
-    fs::remove(out);
-    return {WIFEXITED(raw) ? WEXITSTATUS(raw) : 128 + WTERMSIG(raw), err_text};
-  }
-
-  // Files in the test folder, other than the captured stderr.
-  std::vector<std::string> files() const {
-    std::vector<std::string> names;
-    for (const auto& e : fs::directory_iterator(dir_)) names.push_back(e.path().filename().string());
-    return names;
-  }
-
-  std::string out(const std::string& name) const { return (dir_ / name).string(); }
-
-  fs::path dir_;
-};
-
-const std::string kGood = "--sigma-s 2 --sigma-a 0.5 --g 0.3 --alpha-bins 6 --grid healpix:2 --paths 2000 --quiet";
 
 TEST_F(Cli, ValidRunWritesAContractTable) {
   Result r = stf("precompute " + kGood + " --seed 9 -o " + out("t.h5"));
@@ -154,23 +109,6 @@ TEST_F(Cli, InterruptLeavesNothingHalfWrittenAndKeepsTheOldFile) {
   EXPECT_EQ(files(), std::vector<std::string>{"t.h5"});
   EXPECT_EQ(fs::file_size(out("t.h5")), before);
   EXPECT_EQ(stf::read_table(out("t.h5")).paths, 2000);
-}
-
-// Runs stf with `args`, sends SIGINT after `ms` milliseconds; returns the exit status.
-int interrupt_after(std::vector<std::string> args, int ms) {
-  pid_t pid = ::fork();
-  if (pid == 0) {
-    std::vector<char*> argv = {const_cast<char*>(STF_BINARY)};
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    ::execv(STF_BINARY, argv.data());
-    ::_exit(127);
-  }
-  std::this_thread::sleep_for(std::chrono::milliseconds(ms));
-  ::kill(pid, SIGINT);
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 
 TEST_F(Cli, InterruptedFitAndBuildLeaveNothingHalfWritten) {
