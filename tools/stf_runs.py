@@ -3,6 +3,7 @@ import json
 import math
 import os
 import subprocess
+import sys
 
 import h5py
 
@@ -14,7 +15,12 @@ class Stf:
         self.binary = binary or os.path.join(ROOT, "build", "stf")
 
     def run(self, *args):
-        subprocess.run([self.binary, *map(str, args)], check=True, stdout=subprocess.DEVNULL)
+        """Runs stf quietly; its stderr is shown only when it fails."""
+        done = subprocess.run([self.binary, *map(str, args)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                              text=True)
+        if done.returncode != 0:
+            sys.stderr.write(done.stderr)
+            done.check_returncode()
 
     def precompute(self, medium, paths, seed, path, grid, bins, threads=0):
         """Walks a table; returns its wall-clock seconds (the runtime_s attribute)."""
