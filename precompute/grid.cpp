@@ -42,19 +42,36 @@ void DirectionGrid::cells(const double* x, const double* y, const double* z, std
   for (int i = 0; i < n; ++i) out[i] = cell({x[i], y[i], z[i]});
 }
 
-std::unique_ptr<DirectionGrid> make_grid(const std::string& spec) {
+namespace {
+
+struct GridSpec {
+  bool csc = false;
+  int n = 0;  // cells per face edge, or NSIDE
+};
+
+GridSpec parse_grid(const std::string& spec) {
   auto colon = spec.find(':');
   std::string kind = spec.substr(0, colon);
   if (colon == std::string::npos || (kind != "csc" && kind != "healpix"))
     throw std::invalid_argument("--grid '" + spec + "' is not valid: expected csc:N or healpix:NSIDE");
   int value = parse_positive(spec.substr(colon + 1), spec);
-  if (kind == "csc") {
-    if (value > 1024) throw std::invalid_argument("--grid csc:N allows 1 <= N <= 1024, got " + spec);
-    return std::make_unique<CscGrid>(value);
-  }
-  if (value > 8192 || (value & (value - 1)) != 0)
-    throw std::invalid_argument("--grid healpix:NSIDE needs a power of two 1..8192, got " + spec);
-  return std::make_unique<HealpixGrid>(value);
+  if (kind == "csc" && value > 1024) throw std::invalid_argument("--grid csc:N allows 1 <= N <= 1024, got " + spec);
+  if (kind == "healpix" && (value > 2048 || (value & (value - 1)) != 0))
+    throw std::invalid_argument("--grid healpix:NSIDE needs a power of two 1..2048, got " + spec);
+  return {kind == "csc", value};
+}
+
+}  // namespace
+
+std::int64_t grid_cell_count(const std::string& spec) {
+  GridSpec g = parse_grid(spec);
+  return (g.csc ? 6ll : 12ll) * g.n * g.n;
+}
+
+std::unique_ptr<DirectionGrid> make_grid(const std::string& spec) {
+  GridSpec g = parse_grid(spec);
+  if (g.csc) return std::make_unique<CscGrid>(g.n);
+  return std::make_unique<HealpixGrid>(g.n);
 }
 
 // ---- CSC ----------------------------------------------------------------------------------
@@ -235,7 +252,7 @@ void HealpixGrid::cells(const double* x, const double* y, const double* z, std::
     double tt = fast_atan2(y[i], x[i]) * (2 / kPi);  // in (-2, 2]
     tt = tt < 0 ? tt + 4 : tt;                       // in [0, 4)
     tt = tt >= 4 ? 0 : tt;
-    // Equatorial belt. 32-bit integers (NSIDE <= 8192 keeps every index below 2^31) let the
+    // Equatorial belt. 32-bit integers (NSIDE <= 8192 keeps every index below 2^31; stf allows up to 2048) let the
     // loop vectorise.
     double t1 = ns * (0.5 + tt), t2 = ns * zi * 0.75;
     std::int32_t jp = std::int32_t(t1 - t2), jm = std::int32_t(t1 + t2);

@@ -1,5 +1,6 @@
 #include "h5io.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 namespace stf::h5 {
@@ -19,21 +20,54 @@ T get_scalar(const H5::H5Object& obj, const char* name, const H5::PredType& type
   return value;
 }
 
-template <typename T>
-void put_array(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
-               const T* data, const H5::PredType& type) {
-  H5::DataSpace space(int(dims.size()), dims.data());
-  H5::DSetCreatPropList props;
+// Chunks of about 1 MiB, filled from the last (fastest) dimension: one chunk per row made a
+// million-row file hold a million chunks, whose index alone took gigabytes to write and read.
+constexpr hsize_t kChunkBytes = hsize_t(1) << 20;
+
+std::vector<hsize_t> chunk_shape(const std::vector<hsize_t>& dims, std::size_t element_bytes) {
+  std::vector<hsize_t> chunk(dims.size(), 1);
+  hsize_t room = std::max<hsize_t>(1, kChunkBytes / element_bytes);
+  for (std::size_t i = dims.size(); i-- > 0 && room > 1;) {
+    chunk[i] = std::min(dims[i], room);
+    room /= chunk[i];
+  }
+  return chunk;
+}
+
+hsize_t product(const std::vector<hsize_t>& dims) {
   hsize_t total = 1;
   for (hsize_t d : dims) total *= d;
-  if (total >= 4096) {
-    std::vector<hsize_t> chunk(dims);
-    chunk.front() = 1;
+  return total;
+}
+
+// Large datasets are chunked and deflated (tables are mostly zeros far from the forward lobe).
+H5::DataSet create(H5::Group& group, const char* name, const std::vector<hsize_t>& dims, std::size_t element_bytes,
+                   const H5::PredType& type) {
+  H5::DataSpace space(int(dims.size()), dims.data());
+  H5::DSetCreatPropList props;
+  if (product(dims) >= 4096) {
+    std::vector<hsize_t> chunk = chunk_shape(dims, element_bytes);
     props.setChunk(int(chunk.size()), chunk.data());
     props.setShuffle();
     props.setDeflate(4);
   }
-  group.createDataSet(name, type, space, props).write(data, type);
+  return group.createDataSet(name, type, space, props);
+}
+
+template <typename T>
+void put_array(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
+               const T* data, const H5::PredType& type) {
+  create(group, name, dims, sizeof(T), type).write(data, type);
+}
+
+// Row r of a dataset whose rows are its last dimension, as a hyperslab of the file's space.
+H5::DataSpace row_space(const H5::DataSet& set, const std::vector<hsize_t>& dims, hsize_t r) {
+  H5::DataSpace space = set.getSpace();
+  std::vector<hsize_t> start(dims.size(), 0), count(dims.size(), 1);
+  for (std::size_t i = dims.size() - 1; i-- > 0; r /= dims[i]) start[i] = r % dims[i];
+  count.back() = dims.back();
+  space.selectHyperslab(H5S_SELECT_SET, count.data(), start.data());
+  return space;
 }
 
 template <typename T>
@@ -92,6 +126,23 @@ void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>&
 void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
                  const std::int32_t* data) {
   put_array(group, name, dims, data, H5::PredType::NATIVE_INT32);
+}
+
+void put_rows(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
+              const std::function<const double*(hsize_t)>& row) {
+  H5::DataSet set = create(group, name, dims, sizeof(double), H5::PredType::NATIVE_DOUBLE);
+  H5::DataSpace memory(1, &dims.back());
+  for (hsize_t r = 0, rows = product(dims) / dims.back(); r < rows; ++r)
+    set.write(row(r), H5::PredType::NATIVE_DOUBLE, memory, row_space(set, dims, r));
+}
+
+void get_rows(const H5::H5File& file, const char* path, const std::vector<hsize_t>& expect,
+              const std::function<double*(hsize_t)>& row) {
+  if (dataset_shape(file, path) != expect) throw std::runtime_error(std::string("unexpected shape of ") + path);
+  H5::DataSet set = file.openDataSet(path);
+  H5::DataSpace memory(1, &expect.back());
+  for (hsize_t r = 0, rows = product(expect) / expect.back(); r < rows; ++r)
+    set.read(row(r), H5::PredType::NATIVE_DOUBLE, memory, row_space(set, expect, r));
 }
 
 std::vector<double> get_dataset(const H5::H5File& file, const char* path,

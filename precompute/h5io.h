@@ -4,6 +4,7 @@
 #include <H5Cpp.h>
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -26,6 +27,13 @@ void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>&
                  const double* data);
 void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
                  const std::int32_t* data);
+// A float64 dataset of shape `dims` written one row (the last dimension) at a time:
+// row(r) points at row r's values. For tables too large to gather into one array first.
+void put_rows(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
+              const std::function<const double*(hsize_t)>& row);
+// Reads a float64 dataset of shape `expect` one row at a time into row(r).
+void get_rows(const H5::H5File& file, const char* path, const std::vector<hsize_t>& expect,
+              const std::function<double*(hsize_t)>& row);
 // Reads a dataset and checks its shape; an empty `expect` accepts any shape.
 std::vector<double> get_dataset(const H5::H5File& file, const char* path,
                                 const std::vector<hsize_t>& expect);

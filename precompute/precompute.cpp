@@ -43,13 +43,20 @@ std::optional<std::string> validate(const Medium& m, const PrecomputeSettings& s
   if (s.max_scatter < -1 || s.max_scatter > kSafetyMaxScatter)
     return "--max-scatter must be -1 (no limit) or in 0.." + std::to_string(kSafetyMaxScatter) +
            ", got " + std::to_string(s.max_scatter);
+  std::int64_t cells = 0;
   try {
-    make_grid(s.grid);
+    cells = grid_cell_count(s.grid);
   } catch (const std::invalid_argument& e) {
     return std::string(e.what());
   }
+  if (double bytes = table_bytes(cells, s.alpha_bins); bytes > kMaxTableBytes)
+    return "--grid " + s.grid + " with --alpha-bins " + std::to_string(s.alpha_bins) + " needs about " +
+           number(bytes / (1 << 30)) + " GiB of memory; stf keeps tables up to " + number(kMaxTableBytes / (1 << 30)) +
+           " GiB (use fewer alpha bins or a coarser grid)";
   return std::nullopt;
 }
+
+double table_bytes(std::int64_t cells, int alpha_bins) { return double(cells) * (16.0 * alpha_bins + 40); }
 
 std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& s,
                                 const std::atomic<bool>* cancel, const ProgressFn& progress) {
@@ -75,23 +82,28 @@ std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& 
   std::mutex mutex;
   std::condition_variable finished;
   std::atomic<bool> stopped{false};
-  std::vector<Tally> tallies(threads, Tally(s.alpha_bins, grid->cell_count()));
-  auto worker = [&](int t) {
+  Tally tally(s.alpha_bins, grid->cell_count());  // one table, shared by all threads
+  std::mutex tally_mutex;
+  auto worker = [&] {
     WalkControl control{cancel, &paths_done};
+    ChunkTally chunk;
     for (std::int64_t c; (c = next_chunk.fetch_add(1)) < chunks;) {
       std::int64_t first = c * per_chunk;
       std::int64_t count = std::min(per_chunk, s.paths - first);
-      if (!walk_chunk(setup, std::uint64_t(s.seed), std::uint64_t(c), first, count, tallies[t], control)) {
+      if (!walk_chunk(setup, std::uint64_t(s.seed), std::uint64_t(c), first, count, chunk, control)) {
         stopped = true;
         break;
       }
+      std::lock_guard<std::mutex> lock(tally_mutex);
+      chunk.add_to(tally);
+      chunk.clear();
     }
     std::lock_guard<std::mutex> lock(mutex);
     --running;
     finished.notify_one();
   };
   std::vector<std::thread> pool;
-  for (int t = 0; t < threads; ++t) pool.emplace_back(worker, t);
+  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
   auto seconds = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
@@ -102,8 +114,6 @@ std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& 
   }
   for (auto& th : pool) th.join();
   if (stopped || (cancel && cancel->load())) return std::nullopt;
-  for (int t = 1; t < threads; ++t) tallies[0].add(tallies[t]);
-  const Tally& tally = tallies[0];
   if (progress) progress(s.paths, s.paths, seconds());
 
   Table table;
@@ -122,7 +132,7 @@ std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& 
     table.direction.push_back({v.x, v.y, v.z});
   }
   table.solid_angle = grid->solid_angles();
-  for (int h = 0; h < 2; ++h) table.weight_half[h].assign(tally.counts[h].begin(), tally.counts[h].end());
+  for (int h = 0; h < 2; ++h) table.weight_half[h] = std::move(tally.counts[h]);
   table.escaped_weight = double(tally.escaped);
   table.absorbed_weight = double(tally.absorbed);
   table.truncated_weight = double(tally.truncated);

@@ -14,6 +14,12 @@ namespace stf {
 // Largest optical radius a table may have (tau = (sigma_s + sigma_a) * radius).
 inline constexpr double kMaxTau = 1e7;
 
+// Largest table stf holds in memory: with the grid it needs about
+// cells * (16 * alpha_bins + 40) bytes (two half-tables of float64 counts, cell centres and
+// solid angles), and fitting it needs more again. Checked before any work.
+inline constexpr double kMaxTableBytes = 8.0 * (1 << 30);
+double table_bytes(std::int64_t cells, int alpha_bins);
+
 struct PrecomputeSettings {
   int alpha_bins = 90;
   std::string grid = "healpix:16";

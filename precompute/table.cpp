@@ -50,12 +50,14 @@ void write_table(const Table& t, const std::string& path) {
 
     const hsize_t bins = hsize_t(t.alpha_bins), cells = hsize_t(t.cells);
     H5::Group escape = file.createGroup("/escape");
-    std::vector<double> weight = t.weight();
-    put_dataset(escape, "weight", {bins, cells}, weight.data());
-    std::vector<double> halves(2 * weight.size());
-    std::copy(t.weight_half[0].begin(), t.weight_half[0].end(), halves.begin());
-    std::copy(t.weight_half[1].begin(), t.weight_half[1].end(), halves.begin() + weight.size());
-    put_dataset(escape, "weight_half", {2, bins, cells}, halves.data());
+    // Row by row: a fine grid's table is gigabytes, and whole-table copies would double that.
+    std::vector<double> sum(cells);
+    put_rows(escape, "weight", {bins, cells}, [&](hsize_t b) {
+      for (hsize_t c = 0; c < cells; ++c) sum[c] = t.weight_half[0][b * cells + c] + t.weight_half[1][b * cells + c];
+      return sum.data();
+    });
+    put_rows(escape, "weight_half", {2, bins, cells},
+             [&](hsize_t r) { return &t.weight_half[r / bins][(r % bins) * cells]; });
     put_dataset(escape, "alpha_edges", {bins + 1}, t.alpha_edges.data());
 
     H5::Group grid = file.createGroup("/grid");
@@ -128,10 +130,9 @@ Table read_table(const std::string& path) {
     if (dims.size() != 2) throw std::runtime_error("/escape/weight is not 2D");
     t.alpha_bins = int(dims[0]);
     t.cells = std::int64_t(dims[1]);
-    std::vector<double> halves = get_dataset(file, "/escape/weight_half", {2, dims[0], dims[1]});
-    auto mid = halves.begin() + std::ptrdiff_t(dims[0] * dims[1]);
-    t.weight_half[0].assign(halves.begin(), mid);
-    t.weight_half[1].assign(mid, halves.end());
+    for (auto& half : t.weight_half) half.resize(dims[0] * dims[1]);
+    get_rows(file, "/escape/weight_half", {2, dims[0], dims[1]},
+             [&](hsize_t r) { return &t.weight_half[r / dims[0]][(r % dims[0]) * dims[1]]; });
     t.alpha_edges = get_dataset(file, "/escape/alpha_edges", {dims[0] + 1});
     t.solid_angle = get_dataset(file, "/grid/solid_angle", {dims[1]});
     std::vector<double> dir = get_dataset(file, "/grid/direction", {dims[1], 3});

@@ -15,6 +15,26 @@ Tally::Tally(int bins, std::int64_t n_cells) : cells(n_cells), alpha_bins(bins) 
   for (auto& c : counts) c.assign(std::size_t(bins) * std::size_t(n_cells), 0);
 }
 
+void ChunkTally::add_to(Tally& tally) const {
+  // A fine grid's table is far larger than the caches and escapes land at random cells: fetch
+  // a few increments ahead so they do not each wait for memory.
+  constexpr std::size_t kAhead = 16;
+  for (std::size_t i = 0; i < escapes.size(); ++i) {
+    if (i + kAhead < escapes.size())
+      __builtin_prefetch(&tally.counts[escapes[i + kAhead] & 1][escapes[i + kAhead] >> 1], 1);
+    tally.counts[escapes[i] & 1][escapes[i] >> 1] += 1;
+  }
+  tally.escaped += escaped;
+  tally.absorbed += absorbed;
+  tally.truncated += truncated;
+  tally.collisions += collisions;
+}
+
+void ChunkTally::clear() {
+  escapes.clear();
+  escaped = absorbed = truncated = collisions = 0;
+}
+
 void Tally::add(const Tally& other) {
   for (int h = 0; h < 2; ++h)
     for (std::size_t i = 0; i < counts[h].size(); ++i) counts[h][i] += other.counts[h][i];
@@ -164,13 +184,11 @@ void step(Lanes& L, const StepConstants& k) {
   }
 }
 
-// Escapes are binned in batches: the exit geometry runs as one loop the compiler vectorises,
-// the grid looks up all cells in one call, and the table increments are prefetched together
-// (the table is megabytes and escapes land at random cells, so one at a time each increment
-// would wait for memory on its own).
+// Escapes are binned in batches: the exit geometry runs as one loop the compiler vectorises
+// and the grid looks up all cells in one call.
 class EscapeBatch {
  public:
-  EscapeBatch(const WalkSetup& setup, Tally& tally)
+  EscapeBatch(const WalkSetup& setup, ChunkTally& tally)
       : setup_(setup), alpha_(setup.alpha_bins), tally_(tally) {}
   ~EscapeBatch() { flush(); }
 
@@ -194,11 +212,8 @@ class EscapeBatch {
     setup_.grid->cells(dx_, dy_, dz_, cell_, n_);
     const std::size_t cells = std::size_t(setup_.grid->cell_count());
     alpha_.bins(z_, bin_, n_);
-    for (int j = 0; j < n_; ++j) {
-      index_[j] = std::size_t(bin_[j]) * cells + std::size_t(cell_[j]);
-      __builtin_prefetch(&tally_.counts[half_[j]][index_[j]], 1);
-    }
-    for (int j = 0; j < n_; ++j) ++tally_.counts[half_[j]][index_[j]];
+    for (int j = 0; j < n_; ++j)
+      tally_.escapes.push_back(2 * (std::uint64_t(bin_[j]) * cells + std::uint64_t(cell_[j])) + std::uint64_t(half_[j]));
     n_ = 0;
   }
 
@@ -206,18 +221,17 @@ class EscapeBatch {
   static constexpr int kSize = 128;
   const WalkSetup& setup_;
   const AlphaBins alpha_;
-  Tally& tally_;
+  ChunkTally& tally_;
   int n_ = 0;
   double x_[kSize], y_[kSize], z_[kSize], dx_[kSize], dy_[kSize], dz_[kSize];
   int half_[kSize], bin_[kSize];
   std::int64_t cell_[kSize];
-  std::size_t index_[kSize];
 };
 
 }  // namespace
 
 bool walk_chunk(const WalkSetup& setup, std::uint64_t seed, std::uint64_t chunk,
-                std::int64_t first_path, std::int64_t count, Tally& tally,
+                std::int64_t first_path, std::int64_t count, ChunkTally& tally,
                 const WalkControl& control) {
   const StepConstants k = make_constants(setup);
   EscapeBatch escapes(setup, tally);

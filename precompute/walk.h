@@ -41,16 +41,28 @@ class AlphaBins {
   std::vector<double> cos_edges_;  // decreasing, cos(pi b / n)
 };
 
-// Integer tallies of one or more chunks. Counts are integers, so adding tallies in any order
-// gives the same table: the result does not depend on the number of threads.
+// Tallies of one or more chunks: escapes per (half, alpha bin, cell) and event counts. Counts
+// are integers (held exactly in doubles, up to 2^53 per cell), so adding tallies in any order
+// gives the same table: the result does not depend on the number of threads or processes.
 struct Tally {
   std::int64_t cells = 0;
   int alpha_bins = 0;
-  std::vector<std::uint64_t> counts[2];  // per half: [alpha_bins * cells]
+  std::vector<double> counts[2];  // per half: [alpha_bins * cells]
   std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0;
 
   Tally(int alpha_bins, std::int64_t cells);
   void add(const Tally& other);
+};
+
+// What the walk of one chunk books: each escape as its table index 2 (bin cells + cell) + half,
+// and the event counts. Threads add their chunks to one shared Tally (add_to), so a fine grid
+// costs one table, not one per thread.
+struct ChunkTally {
+  std::vector<std::uint64_t> escapes;
+  std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0;
+
+  void add_to(Tally& tally) const;
+  void clear();
 };
 
 // Paths per chunk for a run of `paths`: a function of `paths` alone, so that the chunks (and
@@ -65,7 +77,7 @@ struct WalkControl {
 // Walks paths [first_path, first_path + count) with the random streams of `chunk`, adding
 // to `tally`. Returns false if it was cancelled (the tally is then incomplete).
 bool walk_chunk(const WalkSetup& setup, std::uint64_t seed, std::uint64_t chunk,
-                std::int64_t first_path, std::int64_t count, Tally& tally,
+                std::int64_t first_path, std::int64_t count, ChunkTally& tally,
                 const WalkControl& control = {});
 
 }  // namespace stf

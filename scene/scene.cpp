@@ -85,6 +85,11 @@ Settings read_settings(const toml::value& t) {
     expect(b >= 1 && b <= 100000 && b == std::floor(b), t.at("alpha_bins"), "settings.alpha_bins: must be a whole number in 1..100000");
     s.alpha_bins = int(b);
   }
+  if (double bytes = table_bytes(grid_cell_count(s.grid), s.alpha_bins); bytes > kMaxTableBytes)
+    error_at(t.contains("grid") ? t.at("grid") : t.at("alpha_bins"),
+             "settings.grid, settings.alpha_bins: a table of " + s.grid + " x " + std::to_string(s.alpha_bins) +
+                 " alpha bins needs about " + fmt(bytes / (1 << 30)) + " GiB; stf keeps tables up to " +
+                 fmt(kMaxTableBytes / (1 << 30)) + " GiB");
   if (t.contains("model")) {
     s.model = text(t.at("model"), "settings.model");
     try {

@@ -247,6 +247,29 @@ TEST_F(Safety, MessagesNameWhatTheUserGave) {
   EXPECT_EQ(r.err.find("chi2/dof"), std::string::npos);
 }
 
+// A million samples: a compact file (chunks of ~1 MiB, not one per row) that h5py reads back.
+TEST_F(Safety, MillionSamplesMakeACompactFileH5pyReads) {
+  if (!has_plotting()) GTEST_SKIP() << "needs /usr/bin/python3 with h5py";
+  make_table("t.h5");
+  ASSERT_EQ(stf("fit " + out("t.h5") + " --model vmf:2 --quiet -o " + out("m.h5")).status, 0);
+  ASSERT_EQ(stf("sample " + out("m.h5") + " --count 1e6 -o " + out("s.h5")).status, 0);
+  EXPECT_LT(fs::file_size(out("s.h5")), 70u << 20);
+  const std::string check = "/usr/bin/python3 -c \"import h5py, sys; f = h5py.File(sys.argv[1], 'r'); "
+                            "p = f['/samples/exit_point'][:]; d = f['/samples/pdf'][:]; "
+                            "sys.exit(0 if p.shape == (1000000, 3) and d.shape == (1000000,) and (d > 0).all() and "
+                            "f['/samples/exit_point'].chunks[0] > 1000 else 1)\" " + out("s.h5");
+  EXPECT_EQ(std::system(check.c_str()), 0);
+}
+
+TEST_F(Safety, TablesBeyondMemoryAreRefusedUpFront) {
+  Result r = stf("precompute --sigma-s 1 --sigma-a 0 --g 0 --grid healpix:1024 --alpha-bins 90 --paths 10 -o " + out("x.h5"));
+  expect_one_line(r, "GiB", "healpix:1024 x 90");
+  EXPECT_TRUE(files().empty());
+  std::ofstream(out("scene.toml")) << "[settings]\ngrid = \"healpix:2048\"\n[[media]]\nname = \"m\"\nsigma_s = 1.0\n"
+                                      "sigma_a = 0.0\ng = 0.0\nsize = 8.0\n";
+  expect_one_line(stf("build " + out("scene.toml") + " --plan-only"), "scene.toml:2: settings.grid", "scene grid");
+}
+
 TEST_F(Safety, ChiSquareOnlyInFittedBins) {
   // Few paths over many alpha bins: most bins borrow a neighbour's lobes.
   ASSERT_EQ(stf("precompute --sigma-s 0.3 --sigma-a 0 --g 0.9 --alpha-bins 30 --grid healpix:4 --paths 400 --quiet -o " +
