@@ -197,6 +197,7 @@ HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const D
     std::vector<std::vector<double>> p(t.alpha_bins);
     for_each_bin(t.alpha_bins, s,
                  [&](int b) { p[b] = bin_probabilities(fits, b, s.kind, size, smoothing, levels, basis); });
+    if (cancelled(s)) return {};  // some bins were skipped
     HeldOut h = score(t, 1, p);
     if (best.log_p.empty() || h.nll < best.nll) best = std::move(h), best_t = smoothing;
   }

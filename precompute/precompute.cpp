@@ -3,6 +3,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <stdexcept>
@@ -39,6 +40,8 @@ std::optional<std::string> validate(const Medium& m, const PrecomputeSettings& s
   if (s.alpha_bins < 1 || s.alpha_bins > 100000)
     return "--alpha-bins must be in 1..100000, got " + std::to_string(s.alpha_bins);
   if (s.paths < 1) return "--paths must be at least 1, got " + std::to_string(s.paths);
+  if (s.parts < 1 || s.part < 0 || s.part >= s.parts)
+    return "--shard K/N needs 0 <= K < N, got " + std::to_string(s.part) + "/" + std::to_string(s.parts);
   if (s.threads < 0) return "--threads must be >= 0 (0: all cores), got " + std::to_string(s.threads);
   if (s.max_scatter < -1 || s.max_scatter > kSafetyMaxScatter)
     return "--max-scatter must be -1 (no limit) or in 0.." + std::to_string(kSafetyMaxScatter) +
@@ -58,8 +61,84 @@ std::optional<std::string> validate(const Medium& m, const PrecomputeSettings& s
 
 double table_bytes(std::int64_t cells, int alpha_bins) { return double(cells) * (16.0 * alpha_bins + 40); }
 
-std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& s,
-                                const std::atomic<bool>* cancel, const ProgressFn& progress) {
+ChunkRange chunk_range(const PrecomputeSettings& s) {
+  const std::int64_t per_chunk = chunk_paths(s.paths);
+  ChunkRange r;
+  r.count = (s.paths + per_chunk - 1) / per_chunk;
+  r.first = r.count * s.part / s.parts;
+  r.last = r.count * (s.part + 1) / s.parts;
+  return r;
+}
+
+namespace {
+
+// The walk of one run (or part) over worker threads: chunks are taken from a shared counter,
+// and each finished chunk is added to the one shared tally and marked done, under one lock, so
+// a checkpoint taken under that lock is always consistent.
+class Driver {
+ public:
+  Driver(const WalkSetup& setup, const PrecomputeSettings& s, const Checkpointing& checkpointing)
+      : setup_(setup), s_(s), range_(chunk_range(s)), per_chunk_(chunk_paths(s.paths)), checkpointing_(checkpointing) {
+    state_.tally = Tally(s.alpha_bins, setup.grid->cell_count());
+    state_.done.assign(std::size_t(range_.last - range_.first), 0);
+    if (checkpointing.resume) state_ = *checkpointing.resume;
+    for (std::int64_t c = range_.first; c < range_.last; ++c)
+      if (!state_.done[std::size_t(c - range_.first)]) todo_.push_back(c);
+    for (std::int64_t c = range_.first; c < range_.last; ++c) total_paths_ += paths_of(c);
+    paths_done_ = total_paths_;
+    for (std::int64_t c : todo_) paths_done_ -= paths_of(c);
+  }
+
+  std::int64_t paths_of(std::int64_t c) const { return std::min(per_chunk_, s_.paths - c * per_chunk_); }
+  std::int64_t total_paths() const { return total_paths_; }
+  std::int64_t paths_done() const { return paths_done_.load(); }
+  Progress& state() { return state_; }
+
+  // One worker: walks chunks until none is left; false if cancelled.
+  bool work(const std::atomic<bool>* cancel) {
+    WalkControl control{cancel, &paths_done_};
+    ChunkTally chunk;
+    for (std::size_t i; (i = next_.fetch_add(1)) < todo_.size();) {
+      const std::int64_t c = todo_[i];
+      if (!walk_chunk(setup_, std::uint64_t(s_.seed), std::uint64_t(c), c * per_chunk_, paths_of(c), chunk, control))
+        return false;
+      std::lock_guard<std::mutex> lock(mutex_);
+      chunk.add_to(state_.tally);
+      chunk.clear();
+      state_.done[std::size_t(c - range_.first)] = 1;
+      save_if_due();
+    }
+    return true;
+  }
+
+ private:
+  // Called under the lock: every `seconds`, the sink gets the chunks done so far.
+  void save_if_due() {
+    if (!checkpointing_.save) return;
+    auto now = std::chrono::steady_clock::now();
+    if (std::chrono::duration<double>(now - last_save_).count() < checkpointing_.seconds) return;
+    checkpointing_.save(state_);
+    last_save_ = std::chrono::steady_clock::now();
+  }
+
+  const WalkSetup& setup_;
+  const PrecomputeSettings& s_;
+  const ChunkRange range_;
+  const std::int64_t per_chunk_;
+  const Checkpointing& checkpointing_;
+  Progress state_;
+  std::vector<std::int64_t> todo_;
+  std::atomic<std::size_t> next_{0};
+  std::int64_t total_paths_ = 0;
+  std::atomic<std::int64_t> paths_done_{0};
+  std::mutex mutex_;
+  std::chrono::steady_clock::time_point last_save_ = std::chrono::steady_clock::now();
+};
+
+}  // namespace
+
+std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& s, const std::atomic<bool>* cancel,
+                                const ProgressFn& progress, const Checkpointing& checkpointing) {
   if (auto error = validate(medium, s)) throw std::invalid_argument(*error);
   auto start = std::chrono::steady_clock::now();
   std::unique_ptr<DirectionGrid> grid = make_grid(s.grid);
@@ -72,32 +151,17 @@ std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& 
   setup.alpha_bins = s.alpha_bins;
   setup.grid = grid.get();
 
-  const std::int64_t per_chunk = chunk_paths(s.paths);
-  const std::int64_t chunks = (s.paths + per_chunk - 1) / per_chunk;
+  Driver driver(setup, s, checkpointing);
+  const ChunkRange range = chunk_range(s);
   int threads = s.threads > 0 ? s.threads : int(std::max(1u, std::thread::hardware_concurrency()));
-  threads = int(std::min<std::int64_t>(threads, chunks));
+  threads = int(std::max<std::int64_t>(1, std::min<std::int64_t>(threads, range.last - range.first)));
 
-  std::atomic<std::int64_t> next_chunk{0}, paths_done{0};
   int running = threads;  // guarded by `mutex`
   std::mutex mutex;
   std::condition_variable finished;
   std::atomic<bool> stopped{false};
-  Tally tally(s.alpha_bins, grid->cell_count());  // one table, shared by all threads
-  std::mutex tally_mutex;
   auto worker = [&] {
-    WalkControl control{cancel, &paths_done};
-    ChunkTally chunk;
-    for (std::int64_t c; (c = next_chunk.fetch_add(1)) < chunks;) {
-      std::int64_t first = c * per_chunk;
-      std::int64_t count = std::min(per_chunk, s.paths - first);
-      if (!walk_chunk(setup, std::uint64_t(s.seed), std::uint64_t(c), first, count, chunk, control)) {
-        stopped = true;
-        break;
-      }
-      std::lock_guard<std::mutex> lock(tally_mutex);
-      chunk.add_to(tally);
-      chunk.clear();
-    }
+    if (!driver.work(cancel)) stopped = true;
     std::lock_guard<std::mutex> lock(mutex);
     --running;
     finished.notify_one();
@@ -110,21 +174,24 @@ std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& 
   // Report progress every 100 ms until the workers are done; wake at once when they are.
   for (std::unique_lock<std::mutex> lock(mutex); running > 0;) {
     if (finished.wait_for(lock, std::chrono::milliseconds(100), [&] { return running == 0; })) break;
-    if (progress) progress(paths_done.load(), s.paths, seconds());
+    if (progress) progress(driver.paths_done(), driver.total_paths(), seconds());
   }
   for (auto& th : pool) th.join();
   if (stopped || (cancel && cancel->load())) return std::nullopt;
-  if (progress) progress(s.paths, s.paths, seconds());
+  if (progress) progress(driver.total_paths(), driver.total_paths(), seconds());
 
+  Tally& tally = driver.state().tally;
   Table table;
   table.medium = medium;
-  table.paths = s.paths;
+  table.paths = driver.total_paths();
   table.seed = s.seed;
   table.max_scatter = s.max_scatter;
   table.safety_cap = kSafetyMaxScatter;
   table.grid = grid->spec();
   table.alpha_bins = s.alpha_bins;
   table.cells = grid->cell_count();
+  table.chunk_first = range.first, table.chunk_last = range.last, table.chunk_count = range.count;
+  table.run_paths = s.paths;
   for (int i = 0; i <= s.alpha_bins; ++i) table.alpha_edges.push_back(kPi * i / s.alpha_bins);
   table.alpha_edges.back() = kPi;
   for (std::int64_t c = 0; c < table.cells; ++c) {

@@ -5,9 +5,11 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <vector>
 #include <string>
 
 #include "table.h"
+#include "walk.h"
 
 namespace stf {
 
@@ -27,6 +29,28 @@ struct PrecomputeSettings {
   std::int64_t seed = 1;
   int threads = 0;                // 0: all cores
   std::int64_t max_scatter = -1;  // -1: no limit but the safety cap
+  // One part of the run (a shard, an MPI rank): part `part` of `parts` equal ranges of the
+  // run's deterministic chunk stream. The parts of a run sum to exactly the whole run's table.
+  int part = 0, parts = 1;
+};
+
+// The run's chunks [first, last) that part `part` of `parts` walks.
+struct ChunkRange {
+  std::int64_t first = 0, last = 0, count = 0;  // count: chunks of the whole run
+};
+ChunkRange chunk_range(const PrecomputeSettings& settings);
+
+// A run's state that outlives the process: the chunks of its range already walked (done[c -
+// range.first]) and their tally. A checkpoint sink receives a consistent copy at most every
+// `seconds`; a run restarted from one walks only what is missing and ends with the same table.
+struct Progress {
+  std::vector<char> done;
+  Tally tally{0, 0};
+};
+struct Checkpointing {
+  const Progress* resume = nullptr;  // start from here (nullptr: from nothing)
+  std::function<void(const Progress&)> save;
+  double seconds = 30;
 };
 
 // Called from the launching thread about every 100 ms with the paths finished so far.
@@ -36,9 +60,10 @@ using ProgressFn = std::function<void(std::int64_t done, std::int64_t total, dou
 // allowed, or nothing when they are valid.
 std::optional<std::string> validate(const Medium& medium, const PrecomputeSettings& settings);
 
-// Runs the walk. Returns nothing when `cancel` was set before it finished.
+// Runs the walk (of the settings' part of the run). Returns nothing when `cancel` was set
+// before it finished.
 std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& settings,
                                 const std::atomic<bool>* cancel = nullptr,
-                                const ProgressFn& progress = {});
+                                const ProgressFn& progress = {}, const Checkpointing& checkpointing = {});
 
 }  // namespace stf

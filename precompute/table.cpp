@@ -47,6 +47,10 @@ void write_table(const Table& t, const std::string& path) {
     put_attr(file, "collisions", t.collisions);
     put_attr(file, "runtime_s", t.runtime_s);
     put_attr(file, "generator", t.generator);
+    put_attr(file, "chunk_first", t.chunk_first);
+    put_attr(file, "chunk_last", t.chunk_last);
+    put_attr(file, "chunk_count", t.chunk_count);
+    put_attr(file, "run_paths", t.run_paths);
 
     const hsize_t bins = hsize_t(t.alpha_bins), cells = hsize_t(t.cells);
     H5::Group escape = file.createGroup("/escape");
@@ -74,6 +78,9 @@ std::string table_error(const Table& t) {
         std::isfinite(m.radius) && m.radius > 0 && m.g > -1 && m.g < 1))
     return "medium attributes out of range (sigma_s, sigma_a >= 0 and not both 0, radius > 0, g in (-1, 1))";
   if (t.paths < 1 || t.alpha_bins < 1 || t.cells < 1) return "paths, alpha bins and cells must be at least 1";
+  if (t.chunk_count > 0 && !(0 <= t.chunk_first && t.chunk_first < t.chunk_last && t.chunk_last <= t.chunk_count &&
+                             t.paths <= t.run_paths))
+    return "chunk range out of order (chunk_first, chunk_last, chunk_count, run_paths)";
   auto count = [](double w) { return std::isfinite(w) && w >= 0; };
   if (!count(t.escaped_weight) || !count(t.absorbed_weight) || !count(t.truncated_weight))
     return "escaped, absorbed and truncated weights must be finite and >= 0";
@@ -125,6 +132,12 @@ Table read_table(const std::string& path) {
     t.collisions = get_int64(file, "collisions");
     t.runtime_s = get_double(file, "runtime_s");
     t.generator = get_string(file, "generator");
+    if (has_attr(file, "chunk_count")) {
+      t.chunk_first = get_int64(file, "chunk_first");
+      t.chunk_last = get_int64(file, "chunk_last");
+      t.chunk_count = get_int64(file, "chunk_count");
+      t.run_paths = get_int64(file, "run_paths");
+    }
 
     std::vector<hsize_t> dims = dataset_shape(file, "/escape/weight");
     if (dims.size() != 2) throw std::runtime_error("/escape/weight is not 2D");

@@ -33,6 +33,11 @@ struct Table {
   std::array<std::vector<double>, 2> weight_half;  // each [alpha_bins * cells]
   double escaped_weight = 0, absorbed_weight = 0, truncated_weight = 0;
   std::int64_t collisions = 0;  // scattering and absorption events over all paths
+  // Which chunks of the run's deterministic chunk stream the table holds: [chunk_first,
+  // chunk_last) of chunk_count, for a run of run_paths paths. A part (stf precompute --shard)
+  // holds a sub-range; parts that cover the run sum to its table (stf merge).
+  std::int64_t chunk_first = 0, chunk_last = 0, chunk_count = 0, run_paths = 0;
+  bool is_part() const { return chunk_last - chunk_first != chunk_count; }
   double runtime_s = 0;
   std::string generator;
 
