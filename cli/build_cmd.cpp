@@ -3,9 +3,11 @@
 
 #include <cstdio>
 #include <memory>
+#include <optional>
 
 #include "build.h"
 #include "cli.h"
+#include "mpi.h"
 #include "plan.h"
 #include "scene.h"
 
@@ -49,24 +51,39 @@ void run_build(const BuildOptions& o) {
     else if (!o.quiet) std::fputs(scene::plan_table(plan).c_str(), stderr);
     return;
   }
-  AtomicOutput pack(o.output, "-o", {{o.scene, "the scene"}});  // checked before any work
-  if (!o.quiet) std::fputs(scene::plan_table(plan).c_str(), stderr);
+  const World& w = world();
+  std::optional<AtomicOutput> pack;
+  on_every_rank([&] {  // before any work
+    if (w.root()) pack.emplace(o.output, "-o", std::vector<NamedFile>{{o.scene, "the scene"}});
+  });
+  if (!o.quiet && w.root()) std::fputs(scene::plan_table(plan).c_str(), stderr);
+  // Under mpirun every rank computes its share of the entries into the shared cache.
   int computed = 0;
+  std::string failure;
   try {
-    computed = scene::build(
-        sc, plan, pack.temp_path(), threads,
+    computed = scene::compute_entries(
+        plan, threads,
         [&](int i, int n, const scene::PlanEntry& e) {
-          if (!o.quiet) std::fprintf(stderr, "stf build: [%d/%d] tau %g albedo %g g %g\n", i + 1, n, e.tau, e.albedo, e.g);
+          if (o.quiet) return;
+          std::string rank = w.size > 1 ? " rank " + std::to_string(w.rank) : "";
+          std::fprintf(stderr, "stf build:%s [%d/%d] tau %g albedo %g g %g\n", rank.c_str(), i + 1, n, e.tau, e.albedo, e.g);
         },
-        &interrupted);
-  } catch (const std::exception&) {
-    stop_if_interrupted();  // Ctrl-C: say so (finished entries stay in the cache)
-    throw;
+        &interrupted, w.rank, w.size);
+  } catch (const std::exception& e) {
+    failure = e.what();
   }
+  if (any_rank(!failure.empty())) {
+    stop_if_interrupted();  // Ctrl-C: say so (finished entries stay in the cache)
+    if (!failure.empty()) fail(failure);
+    if (!w.root()) return;
+    fail("another MPI rank failed; finished entries stay in the cache");
+  }
+  if (!w.root()) return;
   // What was built, as the cache now holds it.
   scene::Plan built = scene::make_plan(sc, cache);
+  scene::write_scene_pack(sc, built, pack->temp_path());
   warn_unmet(built, o.strict);
-  pack.commit();
+  pack->commit();
   if (o.json) std::fputs(scene::plan_json(built).c_str(), stdout);
   if (!o.quiet) std::fprintf(stderr, "stf build: computed %d entries, pack -> %s\n", computed, o.output.c_str());
 }

@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 
 namespace stf::cli {
@@ -112,6 +113,21 @@ bool same_file(const std::string& a, const std::string& b) {
   return canonical_name(follow_links(a, "")) == canonical_name(follow_links(b, ""));
 }
 
+// Temporary files `target.tmp-PID` of processes that no longer run (killed with SIGKILL, which
+// no handler sees) are removed when the same output is written again.
+void remove_orphans(const std::string& target) {
+  namespace fs = std::filesystem;
+  const std::string prefix = fs::path(target).filename().string() + ".tmp-";
+  std::error_code error;
+  for (const fs::directory_entry& e : fs::directory_iterator(folder_of(target), error)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind(prefix, 0) != 0) continue;
+    const std::string pid = name.substr(prefix.size());
+    if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos) continue;
+    if (::kill(pid_t(std::stol(pid)), 0) != 0 && errno == ESRCH) fs::remove(e.path(), error);
+  }
+}
+
 void copy_into(const std::string& from, int fd, const std::string& path) {
   int in = ::open(from.c_str(), O_RDONLY);
   if (in < 0) fail("cannot read back the finished output for '" + path + "'");
@@ -167,6 +183,7 @@ AtomicOutput::AtomicOutput(std::string path, std::string option, const std::vect
     temp_ = scratch_.emplace(option_).path();
     return;
   }
+  remove_orphans(target_);
   temp_ = target_ + ".tmp-" + std::to_string(::getpid());
   int fd = ::open(temp_.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0644);
   if (fd < 0) {

@@ -129,6 +129,7 @@ class ProgressBar {
 };
 
 void add_precompute_command(CLI::App& app);
+void add_merge_command(CLI::App& app);
 void add_plot_command(CLI::App& app);
 void add_pack_command(CLI::App& app);
 void add_sample_command(CLI::App& app);

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "cli.h"
+#include "mpi.h"
 
 namespace {
 
@@ -21,9 +22,8 @@ class ConfigWithUnderscores : public CLI::ConfigTOML {
   }
 };
 
-}  // namespace
-
-int main(int argc, char** argv) {
+// One command line, parsed and run; returns the exit status.
+int run(int argc, char** argv) {
   CLI::App app("stf: shell transport functions for rendering dense media");
   app.require_subcommand(1);
   app.set_version_flag("--version", "stf " STF_VERSION);
@@ -32,6 +32,7 @@ int main(int argc, char** argv) {
   app.config_formatter(std::make_shared<ConfigWithUnderscores>());
   app.allow_config_extras(CLI::config_extras_mode::error);  // an unknown key is an error, not ignored
   stf::cli::add_precompute_command(app);
+  stf::cli::add_merge_command(app);
   stf::cli::add_fit_command(app);
   stf::cli::add_eval_command(app);
   stf::cli::add_pack_command(app);
@@ -68,4 +69,13 @@ int main(int argc, char** argv) {
     return 2;
   }
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  stf::cli::start_mpi(argc, argv);  // a no-op unless mpirun started this process
+  int status = run(argc, argv);
+  stf::cli::finish_mpi();
+  return status;
 }

@@ -1,10 +1,18 @@
-// `stf precompute`: walk paths in a sphere of medium and write the raw table.
+// `stf precompute`: walk paths in a sphere of medium and write the raw table; one part of the
+// run with --shard, all of it over MPI ranks under mpirun; `stf merge`: parts into the table.
 #include <CLI/CLI.hpp>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
+#include <optional>
+#include <thread>
 
 #include "cli.h"
+#include "mpi.h"
+#include "parts.h"
 #include "precompute.h"
 #include "walk.h"
 
@@ -16,38 +24,161 @@ struct PrecomputeOptions {
   Medium medium;
   PrecomputeSettings settings;
   std::string alpha_bins = "90", paths = "1e6", seed = "1", threads = "0", max_scatter = "-1";
-  bool quiet = false;
+  std::string shard;
+  bool resume = false, quiet = false;
+  double checkpoint_seconds = 30;
   std::string output;
 };
 
-void run_precompute(const PrecomputeOptions& o) {
+// "K/N": part K of N.
+void parse_shard(const std::string& text, PrecomputeSettings& s) {
+  std::size_t slash = text.find('/');
+  if (slash == std::string::npos) fail("--shard must be K/N (part K of N, 0 <= K < N), got '" + text + "'");
+  s.parts = int(parse_count(text.substr(slash + 1), "--shard N", 1, 1 << 20));
+  s.part = int(parse_count(text.substr(0, slash), "--shard K", 0, s.parts - 1));
+}
+
+bool exists(const std::string& path) {
+  struct stat st;
+  return ::stat(path.c_str(), &st) == 0;
+}
+
+PrecomputeSettings settings_of(const PrecomputeOptions& o) {
   PrecomputeSettings s = o.settings;
   s.alpha_bins = int(parse_count(o.alpha_bins, "--alpha-bins", 1, 100000));
   s.paths = parse_count(o.paths, "--paths", 1, std::int64_t(1) << 50);
   s.seed = parse_count(o.seed, "--seed", 0, INT64_MAX);
   s.threads = int(parse_count(o.threads, "--threads", 0, 4096));
   s.max_scatter = parse_count(o.max_scatter, "--max-scatter", -1, kSafetyMaxScatter);
-  if (auto error = validate(o.medium, s)) fail(*error);
-
-  AtomicOutput out(o.output, "-o");
-  ProgressBar bar("precompute", o.quiet);
-  auto table = precompute(o.medium, s, &interrupted,
-                          [&](std::int64_t done, std::int64_t total, double seconds) {
-                            bar.update(done, total, seconds);
-                          });
-  bar.finish();
-  if (!table) throw Interrupted();
-  write_table(*table, out.temp_path());
-  out.commit();
-  if (!o.quiet) {
-    double n = double(table->paths);
-    std::fprintf(stderr,
-                 "stf precompute: %lld paths in %.3g s (%.3g paths/s, %.3g collisions/path); "
-                 "escaped %.4f, absorbed %.4f, truncated %.4f -> %s\n",
-                 (long long)table->paths, table->runtime_s, n / table->runtime_s,
-                 double(table->collisions) / n, table->escaped_weight / n,
-                 table->absorbed_weight / n, table->truncated_weight / n, o.output.c_str());
+  if (!o.shard.empty()) parse_shard(o.shard, s);
+  if (world().size > 1) {
+    if (!o.shard.empty()) fail("--shard and mpirun exclude each other: under mpirun every rank is a part");
+    s.part = world().rank, s.parts = world().size;
+    if (s.threads == 0) {  // the node's cores, shared by its ranks
+      const char* local = std::getenv("OMPI_COMM_WORLD_LOCAL_SIZE");
+      int ranks_here = local ? std::max(1, std::atoi(local)) : 1;
+      s.threads = std::max(1, int(std::thread::hardware_concurrency()) / ranks_here);
+    }
   }
+  if (!(o.checkpoint_seconds > 0)) fail("--checkpoint-seconds must be > 0");
+  if (auto error = validate(o.medium, s)) fail(*error);
+  return s;
+}
+
+// Beside the output: one per process of the run (each MPI rank has its own).
+std::string checkpoint_path(const std::string& output) {
+  if (world().size == 1) return output + ".checkpoint";
+  return output + ".rank-" + std::to_string(world().rank) + "-of-" + std::to_string(world().size) + ".checkpoint";
+}
+
+// The state an earlier, killed run of the same command left, when --resume asks for it.
+std::optional<Progress> resumable(const PrecomputeOptions& o, const PrecomputeSettings& s, const std::string& path) {
+  if (!exists(path)) {
+    if (o.resume && !o.quiet && world().root()) std::fprintf(stderr, "stf precompute: no checkpoint %s; starting from the beginning\n", path.c_str());
+    return std::nullopt;
+  }
+  if (!o.resume)
+    fail("checkpoint " + path + " holds an unfinished run; rerun the same command with --resume to finish it, or remove it");
+  try {
+    return read_checkpoint(path, run_fingerprint(o.medium, s), chunk_range(s), s.alpha_bins, grid_cell_count(s.grid));
+  } catch (const std::runtime_error& e) {
+    fail(std::string("--resume: ") + e.what());
+  }
+}
+
+void summarise(const PrecomputeOptions& o, const PrecomputeSettings& s, const Table& t) {
+  double n = double(t.paths);
+  std::string part = t.is_part() ? " (part " + std::to_string(s.part) + " of " + std::to_string(s.parts) + ": chunks " +
+                                       std::to_string(t.chunk_first) + ".." + std::to_string(t.chunk_last - 1) + " of " +
+                                       std::to_string(t.chunk_count) + ")"
+                                 : "";
+  std::string ranks = world().size > 1 ? " on " + std::to_string(world().size) + " MPI ranks" : "";
+  std::fprintf(stderr,
+               "stf precompute: %lld paths%s%s in %.3g s (%.3g paths/s, %.3g collisions/path); "
+               "escaped %.4f, absorbed %.4f, truncated %.4f -> %s\n",
+               (long long)t.paths, part.c_str(), ranks.c_str(), t.runtime_s, n / t.runtime_s, double(t.collisions) / n,
+               t.escaped_weight / n, t.absorbed_weight / n, t.truncated_weight / n, o.output.c_str());
+}
+
+void run_precompute(const PrecomputeOptions& o) {
+  PrecomputeSettings s;
+  std::optional<AtomicOutput> out;
+  std::optional<Progress> resumed;
+  const std::string checkpoint = checkpoint_path(o.output);
+  on_every_rank([&] {
+    s = settings_of(o);
+    if (world().root()) out.emplace(o.output, "-o");  // claimed before any work
+    resumed = resumable(o, s, checkpoint);
+  });
+
+  Checkpointing checkpointing;
+  checkpointing.resume = resumed ? &*resumed : nullptr;
+  checkpointing.seconds = o.checkpoint_seconds;
+  const std::string fingerprint = run_fingerprint(o.medium, s);
+  bool warned = false;
+  checkpointing.save = [&](const Progress& p) {
+    try {
+      write_checkpoint(checkpoint, fingerprint, p);
+    } catch (const std::exception& e) {  // the run goes on; only its insurance failed
+      if (!warned) std::fprintf(stderr, "stf precompute: warning: %s\n", e.what());
+      warned = true;
+    }
+  };
+  ProgressBar bar("precompute", o.quiet || !world().root());
+  auto table = precompute(o.medium, s, &interrupted,
+                          [&](std::int64_t done, std::int64_t total, double seconds) { bar.update(done, total, seconds); },
+                          checkpointing);
+  bar.finish();
+  if (any_rank(!table)) {
+    if (exists(checkpoint) && world().root())
+      std::fprintf(stderr, "stf precompute: the work until %s was saved: rerun with --resume to finish it\n",
+                   checkpoint.c_str());
+    throw Interrupted();
+  }
+  sum_to_root(*table);
+  on_every_rank([&] {
+    if (!world().root()) return;
+    write_table(*table, out->temp_path());
+    out->commit();
+  });
+  std::remove(checkpoint.c_str());  // the table holds it all now
+  if (!o.quiet && world().root()) summarise(o, s, *table);
+}
+
+struct MergeOptions {
+  std::vector<std::string> parts;
+  std::string output;
+  bool quiet = false;
+};
+
+void run_merge(const MergeOptions& o) {
+  std::vector<NamedFile> inputs;
+  for (const std::string& p : o.parts) inputs.push_back({p, "part"});
+  require_files(inputs);
+  AtomicOutput out(o.output, "-o", inputs);
+  // First the parts' headers (their weights dropped at once), then one part at a time.
+  std::vector<Table> heads;
+  for (const std::string& p : o.parts) {
+    heads.push_back(read_table(p));
+    for (auto& half : heads.back().weight_half) half = {};
+    stop_if_interrupted();
+  }
+  std::vector<std::size_t> order;
+  try {
+    order = check_parts(heads, o.parts);
+  } catch (const std::invalid_argument& e) {
+    fail(e.what());
+  }
+  Table whole = read_table(o.parts[order.front()]);
+  for (std::size_t i = 1; i < order.size(); ++i) {
+    add_part(whole, read_table(o.parts[order[i]]));
+    stop_if_interrupted();
+  }
+  write_table(whole, out.temp_path());
+  out.commit();
+  if (!o.quiet)
+    std::fprintf(stderr, "stf merge: %zu parts, %lld paths (chunks 0..%lld) -> %s\n", o.parts.size(),
+                 (long long)whole.paths, (long long)whole.chunk_count - 1, o.output.c_str());
 }
 
 }  // namespace
@@ -72,9 +203,23 @@ void add_precompute_command(CLI::App& app) {
                   "Stop a path at collision K+1 and book it as truncated (-1: no limit but the "
                   "safety cap of 1e9 collisions)")
       ->capture_default_str();
+  cmd->add_option("--shard", o->shard, "Walk only part K of N of the run (K = 0..N-1); `stf merge` sums the parts");
+  cmd->add_flag("--resume", o->resume, "Continue the run a killed process left in OUTPUT.checkpoint");
+  cmd->add_option("--checkpoint-seconds", o->checkpoint_seconds,
+                  "Save the finished chunks to OUTPUT.checkpoint this often")
+      ->capture_default_str();
   cmd->add_flag("--quiet", o->quiet, "No progress bar and no summary line");
   cmd->add_option("-o,--output", o->output, "Output table (HDF5)")->required();
   cmd->callback([o] { run_precompute(*o); });
+}
+
+void add_merge_command(CLI::App& app) {
+  auto o = std::make_shared<MergeOptions>();
+  CLI::App* cmd = app.add_subcommand("merge", "Sum the parts of one run (stf precompute --shard K/N) into its table");
+  cmd->add_option("parts", o->parts, "Parts (HDF5 tables written with --shard)")->required();
+  cmd->add_option("-o,--output", o->output, "Output table (HDF5)")->required();
+  cmd->add_flag("--quiet", o->quiet, "No summary line");
+  cmd->callback([o] { run_merge(*o); });
 }
 
 }  // namespace stf::cli

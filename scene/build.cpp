@@ -121,17 +121,21 @@ void compute(const Plan& plan, const PlanEntry& e, int threads, const std::atomi
 
 }  // namespace
 
-int build(const Scene& scene, const Plan& plan, const std::string& pack_path, int threads, const BuildProgress& progress,
-          const std::atomic<bool>* cancel) {
+int compute_entries(const Plan& plan, int threads, const BuildProgress& progress, const std::atomic<bool>* cancel,
+                    int part, int parts) {
   ::mkdir(plan.cache_dir.c_str(), 0755);
-  int to_compute = 0, done = 0;
-  for (const PlanEntry& e : plan.entries) to_compute += e.action == "compute";
-  for (const PlanEntry& e : plan.entries) {
-    if (e.action != "compute") continue;
-    if (progress) progress(done, to_compute, e);
-    compute(plan, e, threads, cancel);
-    ++done;
+  std::vector<const PlanEntry*> mine;
+  int index = 0;
+  for (const PlanEntry& e : plan.entries)
+    if (e.action == "compute" && index++ % parts == part) mine.push_back(&e);
+  for (std::size_t i = 0; i < mine.size(); ++i) {
+    if (progress) progress(int(i), int(mine.size()), *mine[i]);
+    compute(plan, *mine[i], threads, cancel);
   }
+  return int(mine.size());
+}
+
+void write_scene_pack(const Scene& scene, const Plan& plan, const std::string& pack_path) {
   std::vector<PackEntry> pack;
   for (const Medium& m : scene.media)
     for (const PlanEntry& e : plan.entries) {  // entries of one medium are in increasing tau
@@ -144,7 +148,13 @@ int build(const Scene& scene, const Plan& plan, const std::string& pack_path, in
     f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
     if (!f) throw std::runtime_error("cannot write " + p);
   });
-  return done;
+}
+
+int build(const Scene& scene, const Plan& plan, const std::string& pack_path, int threads, const BuildProgress& progress,
+          const std::atomic<bool>* cancel) {
+  int computed = compute_entries(plan, threads, progress, cancel);
+  write_scene_pack(scene, plan, pack_path);
+  return computed;
 }
 
 }  // namespace stf::scene

@@ -19,4 +19,11 @@ using BuildProgress = std::function<void(int, int, const PlanEntry&)>;
 int build(const Scene& scene, const Plan& plan, const std::string& pack_path, int threads,
           const BuildProgress& progress = {}, const std::atomic<bool>* cancel = nullptr);
 
+// The two halves of build(). compute_entries computes the "compute" entries numbered part,
+// part + parts, ... (all of them by default; MPI ranks share them out this way) and returns
+// how many it computed; write_scene_pack packs the scene once every entry is cached.
+int compute_entries(const Plan& plan, int threads, const BuildProgress& progress = {},
+                    const std::atomic<bool>* cancel = nullptr, int part = 0, int parts = 1);
+void write_scene_pack(const Scene& scene, const Plan& plan, const std::string& pack_path);
+
 }  // namespace stf::scene

@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 
 packages=(cmake g++ make pkg-config libhdf5-dev libcli11-dev wcslib-dev libhealpix-cxx-dev
           libceres-dev libeigen3-dev libtoml11-dev libgtest-dev libbenchmark-dev python3-matplotlib python3-h5py
-          python3-numpy)
+          python3-numpy openmpi-bin libopenmpi-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

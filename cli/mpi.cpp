@@ -1,0 +1,96 @@
+#include "mpi.h"
+
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#ifdef STF_WITH_MPI
+#include <mpi.h>
+
+#include <algorithm>
+#include <cstdint>
+#endif
+
+namespace stf::cli {
+
+namespace {
+World the_world;
+
+bool launched_by_mpi() {
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"})
+    if (std::getenv(name)) return true;
+  return false;
+}
+}  // namespace
+
+const World& world() { return the_world; }
+
+#ifdef STF_WITH_MPI
+
+World start_mpi(int& argc, char**& argv) {
+  if (!launched_by_mpi()) return the_world;
+  MPI_Init(&argc, &argv);
+  MPI_Comm_rank(MPI_COMM_WORLD, &the_world.rank);
+  MPI_Comm_size(MPI_COMM_WORLD, &the_world.size);
+  return the_world;
+}
+
+void finish_mpi() {
+  int started = 0;
+  MPI_Initialized(&started);
+  if (started) MPI_Finalize();
+}
+
+bool any_rank(bool flag) {
+  if (the_world.size == 1) return flag;
+  int mine = flag, any = 0;
+  MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_LOR, MPI_COMM_WORLD);
+  return any != 0;
+}
+
+void sum_to_root(Table& part) {
+  if (the_world.size == 1) return;
+  // Counts are whole numbers below 2^53 held in doubles: their sum is exact in any order.
+  constexpr std::size_t kSlice = std::size_t(1) << 26;  // MPI counts are ints
+  for (std::vector<double>& half : part.weight_half)
+    for (std::size_t at = 0; at < half.size(); at += kSlice) {
+      int n = int(std::min(kSlice, half.size() - at));
+      if (the_world.root())
+        MPI_Reduce(MPI_IN_PLACE, half.data() + at, n, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+      else
+        MPI_Reduce(half.data() + at, nullptr, n, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+    }
+  double totals[5] = {part.escaped_weight, part.absorbed_weight, part.truncated_weight, double(part.paths),
+                      part.runtime_s};
+  double sum[5] = {};
+  MPI_Reduce(totals, sum, 5, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+  std::int64_t collisions = part.collisions, all_collisions = 0;
+  MPI_Reduce(&collisions, &all_collisions, 1, MPI_INT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
+  double runtime = part.runtime_s, longest = 0;
+  MPI_Reduce(&runtime, &longest, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
+  if (!the_world.root()) return;
+  part.escaped_weight = sum[0], part.absorbed_weight = sum[1], part.truncated_weight = sum[2];
+  part.paths = std::int64_t(sum[3]);
+  part.collisions = all_collisions;
+  part.runtime_s = longest;  // wall clock of the run: its slowest rank
+  part.chunk_first = 0, part.chunk_last = part.chunk_count;
+}
+
+#else
+
+World start_mpi(int&, char**&) {
+  // N copies of one job would each do all of it and race for the output.
+  const char* size = std::getenv("OMPI_COMM_WORLD_SIZE");
+  if (launched_by_mpi() && !(size && std::string(size) == "1")) {
+    std::fprintf(stderr, "stf: error: this stf was built without MPI; run it without mpirun, or split the run with --shard K/N\n");
+    std::exit(2);
+  }
+  return the_world;
+}
+void finish_mpi() {}
+bool any_rank(bool flag) { return flag; }
+void sum_to_root(Table&) {}
+
+#endif
+
+}  // namespace stf::cli
