@@ -60,10 +60,10 @@ void sum_to_root(Table& part) {
       else
         MPI_Reduce(half.data() + at, nullptr, n, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
     }
-  double totals[5] = {part.escaped_weight, part.absorbed_weight, part.truncated_weight, double(part.paths),
-                      part.runtime_s};
-  double sum[5] = {};
-  MPI_Reduce(totals, sum, 5, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+  double totals[7] = {part.escaped_weight, part.absorbed_weight,  part.truncated_weight, double(part.paths),
+                      part.runtime_s,      part.uncollided_half[0], part.uncollided_half[1]};
+  double sum[7] = {};
+  MPI_Reduce(totals, sum, 7, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
   std::int64_t collisions = part.collisions, all_collisions = 0;
   MPI_Reduce(&collisions, &all_collisions, 1, MPI_INT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
   double runtime = part.runtime_s, longest = 0;
@@ -71,6 +71,7 @@ void sum_to_root(Table& part) {
   if (!the_world.root()) return;
   part.escaped_weight = sum[0], part.absorbed_weight = sum[1], part.truncated_weight = sum[2];
   part.paths = std::int64_t(sum[3]);
+  part.uncollided_half = {sum[5], sum[6]};
   part.collisions = all_collisions;
   part.runtime_s = longest;  // wall clock of the run: its slowest rank
   part.chunk_first = 0, part.chunk_last = part.chunk_count;

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace stf {
@@ -241,6 +242,8 @@ std::int64_t HealpixGrid::cell(const Vec3& d) const {
 // RING-scheme pixel of unit directions. Both the equatorial belt (|z| <= 2/3) and the polar
 // caps are evaluated and the right one selected, so the loop has no branches. Near the poles
 // 1 - |z| is taken as rho^2 / (1 + |z|), which does not cancel.
+constexpr double kBelowFour = 4 - 4 * std::numeric_limits<double>::epsilon() / 2;
+
 void HealpixGrid::cells(const double* x, const double* y, const double* z, std::int64_t* out,
                         int n) const {
   const double ns = nside_;
@@ -250,8 +253,10 @@ void HealpixGrid::cells(const double* x, const double* y, const double* z, std::
     double zi = z[i], za = std::abs(zi);
     double rho2 = x[i] * x[i] + y[i] * y[i];
     double tt = fast_atan2(y[i], x[i]) * (2 / kPi);  // in (-2, 2]
-    tt = tt < 0 ? tt + 4 : tt;                       // in [0, 4)
-    tt = tt >= 4 ? 0 : tt;
+    // In [0, 4). Just below phi = 0, tt + 4 rounds up to 4: that is the last pixel of the ring,
+    // not the first (wrapping it to 0 sent every direction a hair below the x-z plane to the
+    // cell above it).
+    tt = std::min(tt < 0 ? tt + 4 : tt, kBelowFour);
     // Equatorial belt. 32-bit integers (NSIDE <= 8192 keeps every index below 2^31; stf allows up to 2048) let the
     // loop vectorise.
     double t1 = ns * (0.5 + tt), t2 = ns * zi * 0.75;

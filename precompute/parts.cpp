@@ -69,6 +69,8 @@ void write_checkpoint(const std::string& path, const std::string& fingerprint, c
       put_attr(file, "absorbed", std::int64_t(p.tally.absorbed));
       put_attr(file, "truncated", std::int64_t(p.tally.truncated));
       put_attr(file, "collisions", std::int64_t(p.tally.collisions));
+      put_attr(file, "uncollided_even", std::int64_t(p.tally.uncollided[0]));
+      put_attr(file, "uncollided_odd", std::int64_t(p.tally.uncollided[1]));
       H5::Group root = file.openGroup("/");
       std::vector<std::int32_t> done(p.done.begin(), p.done.end());
       put_dataset(root, "done", {hsize_t(done.size())}, done.data());
@@ -98,6 +100,8 @@ Progress read_checkpoint(const std::string& path, const std::string& fingerprint
     p.tally.absorbed = std::uint64_t(get_int64(file, "absorbed"));
     p.tally.truncated = std::uint64_t(get_int64(file, "truncated"));
     p.tally.collisions = std::uint64_t(get_int64(file, "collisions"));
+    p.tally.uncollided[0] = std::uint64_t(get_int64(file, "uncollided_even"));
+    p.tally.uncollided[1] = std::uint64_t(get_int64(file, "uncollided_odd"));
     for (std::int32_t d : get_int_dataset(file, "/done", {hsize_t(range.last - range.first)})) p.done.push_back(char(d != 0));
     const hsize_t bins = hsize_t(alpha_bins);
     get_rows(file, "/counts", {2, bins, hsize_t(cells)},
@@ -140,6 +144,7 @@ void add_part(Table& whole, const Table& p) {
   for (int h = 0; h < 2; ++h)
     for (std::size_t c = 0; c < whole.weight_half[h].size(); ++c) whole.weight_half[h][c] += p.weight_half[h][c];
   whole.paths += p.paths;
+  for (int h = 0; h < 2; ++h) whole.uncollided_half[h] += p.uncollided_half[h];
   whole.escaped_weight += p.escaped_weight;
   whole.absorbed_weight += p.absorbed_weight;
   whole.truncated_weight += p.truncated_weight;

@@ -60,6 +60,8 @@ void write_table(const Table& t, const std::string& path) {
       for (hsize_t c = 0; c < cells; ++c) sum[c] = t.weight_half[0][b * cells + c] + t.weight_half[1][b * cells + c];
       return sum.data();
     });
+    put_dataset(escape, "uncollided_half", {2}, t.uncollided_half.data());
+    put_attr(file, "uncollided_weight", t.uncollided_half[0] + t.uncollided_half[1]);
     put_rows(escape, "weight_half", {2, bins, cells},
              [&](hsize_t r) { return &t.weight_half[r / bins][(r % bins) * cells]; });
     put_dataset(escape, "alpha_edges", {bins + 1}, t.alpha_edges.data());
@@ -94,6 +96,8 @@ std::string table_error(const Table& t) {
       escaped += w;
     }
   if (std::abs(escaped - t.escaped_weight) > 1e-9 * paths) return "/escape/weight does not sum to escaped_weight";
+  for (double u : t.uncollided_half)
+    if (!(u == -1 || (u >= 0 && u <= t.escaped_weight))) return "/escape/uncollided_half out of range";
   const auto& e = t.alpha_edges;
   if (e.front() != 0 || std::abs(e.back() - kPi) > 1e-12) return "/escape/alpha_edges must run from 0 to pi";
   for (std::size_t b = 0; b + 1 < e.size(); ++b)
@@ -147,6 +151,11 @@ Table read_table(const std::string& path) {
     get_rows(file, "/escape/weight_half", {2, dims[0], dims[1]},
              [&](hsize_t r) { return &t.weight_half[r / dims[0]][(r % dims[0]) * dims[1]]; });
     t.alpha_edges = get_dataset(file, "/escape/alpha_edges", {dims[0] + 1});
+    t.uncollided_half = {-1, -1};
+    if (file.nameExists("/escape/uncollided_half")) {
+      std::vector<double> u = get_dataset(file, "/escape/uncollided_half", {2});
+      t.uncollided_half = {u[0], u[1]};
+    }
     t.solid_angle = get_dataset(file, "/grid/solid_angle", {dims[1]});
     std::vector<double> dir = get_dataset(file, "/grid/direction", {dims[1], 3});
     t.direction.resize(dims[1]);

@@ -32,6 +32,9 @@ struct Table {
   // independent half-tables, so a fit can be scored on data it never saw.
   std::array<std::vector<double>, 2> weight_half;  // each [alpha_bins * cells]
   double escaped_weight = 0, absorbed_weight = 0, truncated_weight = 0;
+  // Escapes without any collision (exit point alpha = 0, direction +z), per half; they are in
+  // weight_half too. Tables written before stf recorded it read as -1 (unknown).
+  std::array<double, 2> uncollided_half{0, 0};
   std::int64_t collisions = 0;  // scattering and absorption events over all paths
   // Which chunks of the run's deterministic chunk stream the table holds: [chunk_first,
   // chunk_last) of chunk_count, for a run of run_paths paths. A part (stf precompute --shard)

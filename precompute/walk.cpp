@@ -24,6 +24,7 @@ void ChunkTally::add_to(Tally& tally) const {
       __builtin_prefetch(&tally.counts[escapes[i + kAhead] & 1][escapes[i + kAhead] >> 1], 1);
     tally.counts[escapes[i] & 1][escapes[i] >> 1] += 1;
   }
+  for (int h = 0; h < 2; ++h) tally.uncollided[h] += uncollided[h];
   tally.escaped += escaped;
   tally.absorbed += absorbed;
   tally.truncated += truncated;
@@ -32,12 +33,15 @@ void ChunkTally::add_to(Tally& tally) const {
 
 void ChunkTally::clear() {
   escapes.clear();
+  uncollided[0] = uncollided[1] = 0;
   escaped = absorbed = truncated = collisions = 0;
 }
 
 void Tally::add(const Tally& other) {
-  for (int h = 0; h < 2; ++h)
+  for (int h = 0; h < 2; ++h) {
     for (std::size_t i = 0; i < counts[h].size(); ++i) counts[h][i] += other.counts[h][i];
+    uncollided[h] += other.uncollided[h];
+  }
   escaped += other.escaped;
   absorbed += other.absorbed;
   truncated += other.truncated;
@@ -197,6 +201,8 @@ class EscapeBatch {
     x_[n_] = L.from_px[i], y_[n_] = L.from_py[i], z_[n_] = L.from_pz[i];
     dx_[n_] = L.from_wx[i], dy_[n_] = L.from_wy[i], dz_[n_] = L.from_wz[i];
     half_[n_] = int(L.path[i] & 1);
+    mirror_[n_] = int((L.path[i] >> 1) & 1);
+    if (L.collisions[i] == 0) ++tally_.uncollided[half_[n_]];
     if (++n_ == kSize) flush();
   }
 
@@ -206,6 +212,14 @@ class EscapeBatch {
       double t = exit_distance(p, w);
       Vec3 exit = normalize({p.x + t * w.x, p.y + t * w.y, p.z + t * w.z});
       Vec3 d = rotate_to_xz_plane(exit, w);
+      // The exit distribution is symmetric under y' -> -y'. Once-scattered paths leave exactly
+      // in the plane y' = 0, a cell boundary of many grids, where rounding would pick one side
+      // for all of them; every other path (by its number) is mirrored, and exact zeros take
+      // the side of their path's parity, so no tie decides anything.
+      if (d.x != 0 || d.y != 0) {  // on the axis (uncollided paths) the mirror changes nothing
+        if (d.y == 0) d.y = 1e-300;
+        if (mirror_[j]) d.y = -d.y;
+      }
       dx_[j] = d.x, dy_[j] = d.y, dz_[j] = d.z;
       z_[j] = exit.z;  // cos(alpha)
     }
@@ -224,7 +238,7 @@ class EscapeBatch {
   ChunkTally& tally_;
   int n_ = 0;
   double x_[kSize], y_[kSize], z_[kSize], dx_[kSize], dy_[kSize], dz_[kSize];
-  int half_[kSize], bin_[kSize];
+  int half_[kSize], mirror_[kSize], bin_[kSize];
   std::int64_t cell_[kSize];
 };
 

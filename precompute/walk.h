@@ -48,6 +48,7 @@ struct Tally {
   std::int64_t cells = 0;
   int alpha_bins = 0;
   std::vector<double> counts[2];  // per half: [alpha_bins * cells]
+  std::uint64_t uncollided[2] = {0, 0};  // per half: escapes without a collision (in counts too)
   std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0;
 
   Tally(int alpha_bins, std::int64_t cells);
@@ -59,6 +60,7 @@ struct Tally {
 // costs one table, not one per thread.
 struct ChunkTally {
   std::vector<std::uint64_t> escapes;
+  std::uint64_t uncollided[2] = {0, 0};
   std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0;
 
   void add_to(Tally& tally) const;

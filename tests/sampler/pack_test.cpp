@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 
 #include "fit_table.h"
@@ -64,7 +66,9 @@ TEST(Pack, SamplerDensityEqualsTheFittersDensity) {
     for (int i = 0; i < 2000; ++i) {
       Vec3 y = random_direction(s), w = random_direction(s);
       double a = direct.pdf(y, w), p = from_pack.pdf(y, w);
-      ASSERT_NEAR(p, a, 1e-4 * a + 1e-9) << spec;
+      // float32 parameters: 1e-4 of the value, or of the mean density 1 / (4 pi)^2 where the
+      // clamped SH density is near zero and the rounding of its coefficients dominates.
+      ASSERT_NEAR(p, a, 1e-4 * std::max(a, 1 / (16 * kPi * kPi))) << spec;
     }
   }
 }
