@@ -12,6 +12,11 @@ namespace stf::fit {
 
 namespace {
 
+// Spherical k-means and EM start lobes no narrower than this; the likelihood stage may narrow
+// them further, up to VmfFitOptions::max_kappa (1e8). A lobe already inside one cell barely
+// changes the binned likelihood as it narrows, so near-delta lobes tend to end near 1e7.
+constexpr double kMaxStartKappa = 1e7;
+
 Vec3 cell_centre(const CellQuadrature& q, std::size_t c) {
   Vec3 s{0, 0, 0};
   for (int j = 0; j < q.per_cell; ++j) {
@@ -222,7 +227,7 @@ void em_on_cells(const std::vector<double>& counts, const std::vector<Vec3>& cen
     for (int k = 0; k < K; ++k) {
       double len = length(sum[k]);
       if (mass[k] <= 1e-9 * total || len <= 0) continue;  // a starved lobe keeps its place
-      lobes[k] = {mass[k] / total, std::min(kappa_from_resultant(len / mass[k]), 1e7),
+      lobes[k] = {mass[k] / total, std::min(kappa_from_resultant(len / mass[k]), kMaxStartKappa),
                   {sum[k].x / len, sum[k].y / len, sum[k].z / len}};
     }
   }
@@ -310,7 +315,7 @@ VmfFitResult solve(const std::vector<double>& counts, const CellQuadrature& q,
   std::vector<double> logits(K), log_kappa(K), means(3 * K);
   for (int k = 0; k < K; ++k) {
     logits[k] = std::log(std::max(start[k].weight, 1e-12));
-    log_kappa[k] = std::log(std::clamp(start[k].kappa, options.min_kappa * 10, options.max_kappa / 10));
+    log_kappa[k] = std::log(std::clamp(start[k].kappa, options.min_kappa * 10, std::min(kMaxStartKappa, options.max_kappa / 10)));
     means[3 * k] = start[k].mean.x, means[3 * k + 1] = start[k].mean.y, means[3 * k + 2] = start[k].mean.z;
   }
   ceres::Problem::Options problem_options;
