@@ -61,8 +61,9 @@ struct SampleOptions {
   std::string count = "1e4", seed = "1";
 };
 
+// `component` (which part drew each sample: 0 smooth, 1 uncollided) only for drawn samples.
 void write_samples(AtomicOutput& out, const std::vector<double>& point, const std::vector<double>& direction,
-                   const std::vector<double>& pdf, double escape) {
+                   const std::vector<double>& pdf, const std::vector<std::int8_t>& component, double escape) {
   {
     H5::Exception::dontPrint();
     H5::H5File file(out.temp_path(), H5F_ACC_TRUNC);
@@ -72,6 +73,7 @@ void write_samples(AtomicOutput& out, const std::vector<double>& point, const st
     h5::put_dataset(g, "exit_point", {n, 3}, point.data());
     h5::put_dataset(g, "exit_direction", {n, 3}, direction.data());
     h5::put_dataset(g, "pdf", {n}, pdf.data());
+    if (!component.empty()) h5::put_dataset(g, "component", {n}, component.data());
   }
   out.commit();
 }
@@ -112,11 +114,13 @@ void run_sample(const SampleOptions& o, const CLI::App& cmd) {
       pdf.push_back(unit ? sampler.pdf(y, w) : 0.0);  // off the domain: no support
       if (i % (3 << 16) == 0) stop_if_interrupted();
     }
-    write_samples(out, point, direction, pdf, sampler.escape_probability());
+    write_samples(out, point, direction, pdf, {}, sampler.escape_probability());
     return;
   }
   auto u = [&] { return double(splitmix64(state) >> 11) * 0x1p-53; };
+  std::vector<std::int8_t> component;
   point.reserve(3 * std::size_t(n)), direction.reserve(3 * std::size_t(n)), pdf.reserve(std::size_t(n));
+  component.reserve(std::size_t(n));
   for (std::int64_t i = 0; i < n; ++i) {
     if (i % (1 << 16) == 0) stop_if_interrupted();
     double u0 = u(), u1 = u(), u2 = u(), u3 = u();
@@ -124,8 +128,9 @@ void run_sample(const SampleOptions& o, const CLI::App& cmd) {
     point.insert(point.end(), {s.point.x, s.point.y, s.point.z});
     direction.insert(direction.end(), {s.direction.x, s.direction.y, s.direction.z});
     pdf.push_back(s.pdf);
+    component.push_back(std::int8_t(s.component));
   }
-  write_samples(out, point, direction, pdf, sampler.escape_probability());
+  write_samples(out, point, direction, pdf, component, sampler.escape_probability());
 }
 
 }  // namespace

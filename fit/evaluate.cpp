@@ -80,7 +80,8 @@ double area_share(const Table& reference, int b, int f) {
 }
 
 
-std::vector<double> model_cell_probabilities(const StfModel& m, int b, const QuadratureLevels& levels) {
+namespace {
+std::vector<double> smooth_cell_probabilities(const StfModel& m, int b, const QuadratureLevels& levels) {
   if (m.kind == ModelKind::kVmf) {
     std::vector<VmfLobe> lobes(m.vmf.begin() + std::ptrdiff_t(b) * m.lobes, m.vmf.begin() + std::ptrdiff_t(b + 1) * m.lobes);
     double kappa = 0;
@@ -89,6 +90,17 @@ std::vector<double> model_cell_probabilities(const StfModel& m, int b, const Qua
     return vmf_cell_probabilities(lobes, levels.for_kappa(kappa));
   }
   return density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, w); }, levels.at(2));
+}
+}  // namespace
+
+std::vector<double> model_cell_probabilities(const StfModel& m, int b, const QuadratureLevels& levels) {
+  std::vector<double> p = smooth_cell_probabilities(m, b, levels);
+  if (b != 0 || m.uncollided_fraction <= 0) return p;
+  // Bin 0 also holds the uncollided delta: exactly in the cell of +z.
+  const double share = m.uncollided_share_of_bin0();
+  for (double& x : p) x *= 1 - share;
+  p[std::size_t(levels.pole_cell())] += share;
+  return p;
 }
 
 Evaluation evaluate(const StfModel& m, const Table& reference, const std::vector<double>& chi2_dof) {

@@ -37,7 +37,8 @@ int alpha_group_size(const std::vector<double>& edges, const Table& reference);
 // on the unit sphere, since a sampler spreads alpha uniformly in cos(alpha) within a bin.
 double area_share(const Table& reference, int b, int f);
 
-// Per-cell probabilities of the model in alpha bin b, integrated over the cells of the grid
+// Per-cell probabilities of the model in alpha bin b (bin 0 with its uncollided delta in the
+// cell of +z), integrated over the cells of the grid
 // whose quadratures `levels` holds (build them once for all bins).
 std::vector<double> model_cell_probabilities(const StfModel& model, int bin, const QuadratureLevels& levels);
 

@@ -52,7 +52,15 @@ std::vector<double> bin_counts(const Table& t, int half, int b) {
     std::size_t i = std::size_t(b) * t.cells + c;
     counts[c] = half < 0 ? t.weight_half[0][i] + t.weight_half[1][i] : t.weight_half[half][i];
   }
+  // The uncollided escapes are an exact delta (at alpha = 0 along +z), kept apart: fitted as a
+  // lobe they became a kappa ~1e7 spike at a cell centre, degrees off +z.
+  if (b == 0 && t.uncollided_half[0] >= 0)
+    counts[make_grid(t.grid)->cell({0, 0, 1})] -= half < 0 ? t.uncollided_half[0] + t.uncollided_half[1] : t.uncollided_half[half];
   return counts;
+}
+
+double uncollided_escapes(const Table& t) {
+  return t.uncollided_half[0] >= 0 ? t.uncollided_half[0] + t.uncollided_half[1] : 0.0;
 }
 
 double sum(const std::vector<double>& v) {
@@ -291,7 +299,9 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   m.status = fits.status;
   std::vector<double> escapes(t.alpha_bins);
   for (int b = 0; b < t.alpha_bins; ++b) escapes[b] = sum(bin_counts(t, -1, b));
+  escapes[0] += uncollided_escapes(t);
   double escaped = sum(escapes);
+  m.uncollided_fraction = escaped > 0 ? uncollided_escapes(t) / escaped : 0;
   m.alpha_probability = escaped > 0 ? escapes : uniform_alpha(t.alpha_edges);
   for (double& p : m.alpha_probability) p /= escaped > 0 ? escaped : 1;
   if (s.kind == ModelKind::kVmf) {

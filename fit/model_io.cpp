@@ -10,7 +10,8 @@
 namespace stf::fit {
 
 namespace {
-constexpr int kFormatVersion = 1;
+// Version 2 adds the uncollided fraction; version 1 still loads (as fraction 0).
+constexpr int kFormatVersion = 2;
 }
 
 using namespace h5;
@@ -32,6 +33,7 @@ void write_model(const StfModel& m, const FitReport& r, const Provenance& p, con
     put_attr(file, "escape_probability", m.escape_probability);
     put_attr(file, "absorbed_fraction", m.absorbed_fraction);
     put_attr(file, "truncated_fraction", m.truncated_fraction);
+    put_attr(file, "uncollided_fraction", m.uncollided_fraction);
     put_attr(file, "fit_time_s", r.fit_time_s);
     put_attr(file, "model_bytes", m.packed_bytes());
     put_attr(file, "generator", std::string("stf " STF_VERSION));
@@ -118,8 +120,9 @@ StfModel read_model(const std::string& path) {
     H5::H5File file(path, H5F_ACC_RDONLY);
     if (get_string(file, "format") != "stf-model")
       throw std::runtime_error("not an stf model (format attribute is not 'stf-model')");
-    if (int v = get_int(file, "format_version"); v != kFormatVersion)
-      throw std::runtime_error("unsupported model format_version " + std::to_string(v));
+    const int version = get_int(file, "format_version");
+    if (version < 1 || version > kFormatVersion)
+      throw std::runtime_error("unsupported model format_version " + std::to_string(version));
     StfModel m;
     std::string kind = get_string(file, "model");
     if (kind != "vmf" && kind != "sh") throw std::runtime_error("unknown model kind '" + kind + "'");
@@ -133,6 +136,7 @@ StfModel read_model(const std::string& path) {
     m.escape_probability = get_double(file, "escape_probability");
     m.absorbed_fraction = get_double(file, "absorbed_fraction");
     m.truncated_fraction = get_double(file, "truncated_fraction");
+    if (version >= 2) m.uncollided_fraction = get_double(file, "uncollided_fraction");
     m.alpha_probability = get_dataset(file, "/alpha/probability", {});
     const hsize_t bins = m.alpha_probability.size();
     m.alpha_edges = get_dataset(file, "/alpha/edges", {bins + 1});

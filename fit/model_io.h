@@ -37,7 +37,8 @@ struct ModelSummary {
 
 void write_model(const StfModel& model, const FitReport& report, const Provenance& provenance,
                  const std::string& path);
-// Reads a model written by write_model (format_version 1); the SH tables are rebuilt.
+// Reads a model written by write_model (format_version 2, or 1: no uncollided fraction); the
+// SH tables are rebuilt. Values are checked (model_error).
 StfModel read_model(const std::string& path);
 ModelSummary read_model_summary(const std::string& path);
 // The per-bin chi^2 / dof of a model against the table it was fitted to.

@@ -292,6 +292,7 @@ QuadratureLevels::QuadratureLevels(const DirectionGrid& grid) {
   for (int level = 0; level <= kMaxLevel; ++level) levels_.push_back(grid.quadrature(level));
   std::vector<double> omega = grid.solid_angles();
   cell_solid_angle_ = *std::max_element(omega.begin(), omega.end());
+  pole_cell_ = grid.cell({0, 0, 1});
 }
 
 const CellQuadrature& QuadratureLevels::for_kappa(double kappa, double counts) const {

@@ -31,10 +31,13 @@ class QuadratureLevels {
   // the Poisson noise by kappa a / 12 <= 0.25 counts^(-1/4). At most kMaxLevel; beyond it
   // the widening alone carries near-delta lobes.
   const CellQuadrature& for_kappa(double kappa, double counts = 1e8) const;
+  // The cell holding +z, where the uncollided delta lands.
+  std::int64_t pole_cell() const { return pole_cell_; }
 
  private:
   std::vector<CellQuadrature> levels_;
   double cell_solid_angle_;  // the largest cell's
+  std::int64_t pole_cell_ = 0;
 };
 
 // `counts` per cell of the grid; their total must be > 0. The quadrature level follows the

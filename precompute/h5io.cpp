@@ -127,6 +127,10 @@ void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>&
                  const std::int32_t* data) {
   put_array(group, name, dims, data, H5::PredType::NATIVE_INT32);
 }
+void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
+                 const std::int8_t* data) {
+  put_array(group, name, dims, data, H5::PredType::NATIVE_INT8);
+}
 
 void put_rows(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
               const std::function<const double*(hsize_t)>& row) {

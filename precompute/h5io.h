@@ -27,6 +27,8 @@ void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>&
                  const double* data);
 void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
                  const std::int32_t* data);
+void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
+                 const std::int8_t* data);
 // A float64 dataset of shape `dims` written one row (the last dimension) at a time:
 // row(r) points at row r's values. For tables too large to gather into one array first.
 void put_rows(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,

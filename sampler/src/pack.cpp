@@ -82,7 +82,7 @@ bool little_endian() {
 std::int64_t record_bytes(const StfModel& m, std::size_t name_bytes) {
   const int kind = m.kind == ModelKind::kVmf ? 0 : 1;
   const std::uint32_t size = kind == 0 ? std::uint32_t(m.lobes) : std::uint32_t(m.band_limit);
-  std::size_t n = 4 + 4 + pad4(name_bytes) + 6 * 4 + 6 * 8 + 4 * std::size_t(m.bins()) + pad4(std::size_t(m.bins()));
+  std::size_t n = 4 + 4 + pad4(name_bytes) + 6 * 4 + 7 * 8 + 4 * std::size_t(m.bins()) + pad4(std::size_t(m.bins()));
   return std::int64_t(n + 4 * parameter_count(kind, std::uint32_t(m.bins()), size, m.alpha_degree));
 }
 
@@ -100,7 +100,8 @@ std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries) {
     for (std::uint32_t v : {std::uint32_t(kind), bins, size, std::uint32_t(m.sh_nz)}) payload.put(v);
     payload.put(std::int32_t(m.alpha_degree));
     payload.put(std::uint32_t(0));
-    for (double v : {m.tau, m.albedo, m.g, m.escape_probability, m.absorbed_fraction, m.truncated_fraction})
+    for (double v : {m.tau, m.albedo, m.g, m.escape_probability, m.absorbed_fraction, m.truncated_fraction,
+                     m.uncollided_fraction})
       payload.put(v);
     for (double p : m.alpha_probability) payload.put(float(p));
     for (BinStatus s : m.status) payload.put(std::uint8_t(s));
@@ -132,7 +133,8 @@ bool fail(std::string& error, const std::string& why) {
 bool finite(double v) { return std::isfinite(v); }
 
 // One model record; `r` is positioned at its start.
-bool read_record(Reader& r, PackEntry& e, std::string& error) {
+bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& error) {
+  const std::size_t doubles = version >= 2 ? 7 : 6;
   const std::size_t start = r.at;
   const std::uint32_t record = r.get<std::uint32_t>(), name_bytes = r.get<std::uint32_t>();
   if (!r.ok || record > r.size - start || name_bytes > record) return fail(error, "truncated model record");
@@ -149,7 +151,7 @@ bool read_record(Reader& r, PackEntry& e, std::string& error) {
   if (kind == 1 && (size > 64 || nz < 1 || nz > 256 || degree < -1 || degree > 64 ||
                     std::size_t(bins) * nz * nz * 2 > (std::size_t(1) << 27)))
     return fail(error, "SH band limit, table size or alpha degree out of range");
-  if (std::int64_t(record) != std::int64_t(4 + 4 + pad4(name_bytes) + 6 * 4 + 6 * 8 + 4 * std::size_t(bins) + pad4(bins) +
+  if (std::int64_t(record) != std::int64_t(4 + 4 + pad4(name_bytes) + 6 * 4 + doubles * 8 + 4 * std::size_t(bins) + pad4(bins) +
                                             4 * parameter_count(int(kind), bins, size, kind == 1 ? degree : -1)))
     return fail(error, "model record size does not match its contents");
 
@@ -157,6 +159,7 @@ bool read_record(Reader& r, PackEntry& e, std::string& error) {
   m.kind = kind == 0 ? ModelKind::kVmf : ModelKind::kSh;
   m.tau = r.get<double>(), m.albedo = r.get<double>(), m.g = r.get<double>();
   m.escape_probability = r.get<double>(), m.absorbed_fraction = r.get<double>(), m.truncated_fraction = r.get<double>();
+  if (version >= 2) m.uncollided_fraction = r.get<double>();
   if (!(m.tau > 0 && finite(m.tau) && m.albedo >= 0 && m.albedo <= 1 && m.g > -1 && m.g < 1 &&
         m.escape_probability >= 0 && m.escape_probability <= 1 && finite(m.absorbed_fraction) &&
         finite(m.truncated_fraction)))
@@ -169,6 +172,10 @@ bool read_record(Reader& r, PackEntry& e, std::string& error) {
     total += p;
   }
   if (total > 0 && std::abs(total - 1) > 1e-4) return fail(error, "alpha probabilities do not sum to 1");
+  // The uncollided escapes are part of alpha bin 0's probability (stored as float32).
+  if (!(m.uncollided_fraction >= 0 && m.uncollided_fraction <= m.alpha_probability[0] * (1 + 1e-6) + 1e-12))
+    return fail(error, "uncollided fraction out of range");
+  m.uncollided_fraction = std::min(m.uncollided_fraction, m.alpha_probability[0]);
   for (std::uint32_t b = 0; b <= bins; ++b) m.alpha_edges.push_back(kPi * b / bins);
   for (std::uint32_t b = 0; b < bins; ++b) {
     std::uint8_t s = r.get<std::uint8_t>();
@@ -230,13 +237,13 @@ bool read_pack(const std::uint8_t* data, std::size_t size, std::vector<PackEntry
   Reader r{data, size, 8};
   const std::uint32_t version = r.get<std::uint32_t>(), count = r.get<std::uint32_t>();
   const std::uint64_t payload = r.get<std::uint64_t>(), checksum = r.get<std::uint64_t>();
-  if (version != kPackVersion) return fail(error, "unsupported pack version " + std::to_string(version));
+  if (version < 1 || version > kPackVersion) return fail(error, "unsupported pack version " + std::to_string(version));
   if (payload != size - kHeaderBytes) return fail(error, "pack size does not match its header (truncated?)");
   if (fnv1a(data + kHeaderBytes, payload) != checksum) return fail(error, "pack checksum mismatch (corrupted)");
   if (count > payload / 100 + 1) return fail(error, "model count out of range");
   for (std::uint32_t i = 0; i < count; ++i) {
     PackEntry e;
-    if (!read_record(r, e, error)) {
+    if (!read_record(r, e, version, error)) {
       entries.clear();
       error = "model " + std::to_string(i) + ": " + error;
       return false;

@@ -90,15 +90,25 @@ Vec3 ShellSampler::sample_direction(int bin, double u2, double u3) const {
 ExitSample ShellSampler::sample(double u0, double u1, double u2, double u3) const {
   double remainder;
   int bin = sample_alpha_bin(u0, remainder);
+  ExitSample s;
+  if (bin == 0) {  // the uncollided delta is part of bin 0
+    const double share = model_.uncollided_share_of_bin0();
+    if (remainder < share) {
+      s.point = s.direction = {0, 0, 1};
+      s.pdf = model_.uncollided_fraction;
+      s.component = kUncollided;
+      return s;
+    }
+    remainder = std::min((remainder - share) / (1 - share), 1.0);
+  }
   double c0 = cos_edges_[bin], c1 = cos_edges_[bin + 1];
   double cos_alpha = c0 + remainder * (c1 - c0), sin_alpha = std::sqrt(std::max(0.0, 1 - cos_alpha * cos_alpha));
   double cb, sb;
   sincos_2pi(u1, sb, cb);  // beta = 2 pi u1
   Vec3 local = sample_direction(bin, u2, u3);
-  ExitSample s;
   s.point = {sin_alpha * cb, sin_alpha * sb, cos_alpha};
   s.direction = rotate_z(local, cb, sb);
-  s.pdf = model_.alpha_probability[bin] / (2 * kPi * (c0 - c1)) * direction_pdf(bin, local);
+  s.pdf = smooth_probability(bin) / (2 * kPi * (c0 - c1)) * direction_pdf(bin, local);
   return s;
 }
 
@@ -108,7 +118,7 @@ double ShellSampler::pdf(const Vec3& point, const Vec3& direction) const {
   double rho = std::sqrt(point.x * point.x + point.y * point.y);
   double cb = rho > 0 ? point.x / rho : 1, sb = rho > 0 ? point.y / rho : 0;
   Vec3 local = rotate_z(direction, cb, -sb);
-  return model_.alpha_probability[bin] / (2 * kPi * (c0 - c1)) * direction_pdf(bin, local);
+  return smooth_probability(bin) / (2 * kPi * (c0 - c1)) * direction_pdf(bin, local);
 }
 
 namespace {
@@ -132,9 +142,10 @@ WorldExit ShellSampler::sample_world(const Vec3& position, const Vec3& direction
   Frame f = frame_around(direction);
   ExitSample s = sample(u0, u1, u2, u3);
   Vec3 p = f.to_world(s.point);
-  // The unit-sphere area measure scales by radius^2 on the sphere of that radius.
-  return {{position.x + radius * p.x, position.y + radius * p.y, position.z + radius * p.z},
-          f.to_world(s.direction), s.pdf / (radius * radius)};
+  // The unit-sphere area measure scales by radius^2 on the sphere of that radius; a discrete
+  // probability does not.
+  return {{position.x + radius * p.x, position.y + radius * p.y, position.z + radius * p.z}, f.to_world(s.direction),
+          s.component == kSmooth ? s.pdf / (radius * radius) : s.pdf, s.component};
 }
 
 double ShellSampler::pdf_world(const Vec3& position, const Vec3& direction, double radius, const Vec3& exit_point,

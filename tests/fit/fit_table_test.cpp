@@ -1,6 +1,7 @@
 // Whole tables: stiff media, determinism, storage, evaluation.
 #include "fit_table.h"
 
+#include <H5Cpp.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -90,8 +91,53 @@ TEST(FitTable, StiffMediaGiveFiniteNormalisedModels) {
   }
 }
 
+// The uncollided escapes are an exact delta of the model, not a fitted lobe: before, a lobe of
+// kappa ~1e7 sat at a cell centre degrees off +z. The model cell probabilities put the delta
+// exactly into the cell of +z, as the table has it.
+TEST(FitTable, UncollidedEscapesAreAnExactDeltaNotALobe) {
+  Table t = make_table({0.6, 0.1, 0.5, 1}, 100000, "healpix:8", 18);  // tau 0.7: half the escapes uncollided
+  const double uncollided = t.uncollided_half[0] + t.uncollided_half[1];
+  ASSERT_GT(uncollided, 0.3 * t.escaped_weight);
+  for (const char* spec : {"vmf:4", "sh:8"}) {
+    StfModel m = fit_table(t, parse_model_spec(spec));
+    EXPECT_DOUBLE_EQ(m.uncollided_fraction, uncollided / t.escaped_weight) << spec;
+    if (m.kind == ModelKind::kVmf)
+      for (int k = 0; k < m.lobes; ++k) EXPECT_LT(m.vmf[k].kappa, 1e5) << "bin 0 lobe " << k;
+    std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
+    QuadratureLevels levels(*grid);
+    std::vector<double> p = model_cell_probabilities(m, 0, levels);
+    const std::int64_t pole = grid->cell({0, 0, 1});
+    double bin0 = 0;
+    for (std::int64_t c = 0; c < t.cells; ++c) bin0 += t.weight_half[0][c] + t.weight_half[1][c];
+    // The pole cell's table share against the model's: binomial noise of the bin's escapes.
+    const double observed = (t.weight_half[0][pole] + t.weight_half[1][pole]) / bin0;
+    EXPECT_NEAR(p[pole], observed, 5 * std::sqrt(observed * (1 - observed) / bin0) + 0.01) << spec;
+  }
+}
+
+TEST(FitTable, VersionOneModelsStillLoad) {
+  Table t = make_table({2, 0.2, 0.5, 1}, 20000);
+  FitReport report;
+  StfModel m = fit_table(t, parse_model_spec("vmf:2"), &report);
+  const std::string path = ::testing::TempDir() + "/stf_v1_model_" + std::to_string(::getpid()) + ".h5";
+  Provenance provenance;
+  provenance.table = &t;
+  write_model(m, report, provenance, path);
+  {
+    H5::H5File f(path, H5F_ACC_RDWR);
+    f.removeAttr("uncollided_fraction");
+    f.removeAttr("format_version");
+    int one = 1;
+    f.createAttribute("format_version", H5::PredType::NATIVE_INT, H5::DataSpace()).write(H5::PredType::NATIVE_INT, &one);
+  }
+  StfModel v1 = read_model(path);
+  std::remove(path.c_str());
+  EXPECT_EQ(v1.uncollided_fraction, 0);
+  EXPECT_EQ(v1.vmf.size(), m.vmf.size());
+}
+
 TEST(FitTable, EmptyBinsBorrowFromTheirNeighbours) {
-  Table t = make_table({2, 0, 0.5, 1}, 40);
+  Table t = make_table({2, 0, 0.5, 1}, 300);  // some bins above 10 escapes, most below
   StfModel m = fit_table(t, parse_model_spec("vmf:1"));
   int borrowed = 0;
   for (int b = 0; b < m.bins(); ++b) {

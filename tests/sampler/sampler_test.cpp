@@ -108,27 +108,44 @@ TEST(Sampler, DirectionSamplersMatchTheirPdfChiSquare) {
   }
 }
 
+// A model whose bin 0 also holds an uncollided delta (40% of that bin).
+StfModel with_uncollided(StfModel m) {
+  m.uncollided_fraction = 0.4 * m.alpha_probability[0];
+  return m;
+}
+
 // The whole sample: alpha bin, the position of cos(alpha) inside it, beta, and the direction
-// relative to the exit point, against the pdf's own marginals.
+// relative to the exit point, against the pdf's own marginals; the uncollided delta as one more
+// histogram bin of probability uncollided_fraction.
 TEST(Sampler, FullSampleMatchesPdfChiSquare) {
   const std::uint64_t seed = test::test_seed(53);
   SCOPED_TRACE(test::seed_trace(seed));
-  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model()}) {
+  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model())}) {
     ShellSampler s(model);
     const int bins = model.bins(), sub = 3, quarters = 4, n = 600000;
     AxisBins dir({0, 0, 1}, 2.0);
     dir.n_t = 6;
     dir.n_phi = 4;
     // Expected: P(bin) * 1/sub (area-uniform within the band) * 1/4 (beta) * P(direction cell | bin).
-    std::vector<double> expected, observed(bins * sub * quarters * dir.bins(), 0);
+    std::vector<double> expected, observed(bins * sub * quarters * dir.bins() + 1, 0);
     for (int b = 0; b < bins; ++b) {
       std::vector<double> d = dir.expected([&](const Vec3& w) { return s.direction_pdf(b, w); });
+      const double smooth = model.alpha_probability[b] - (b == 0 ? model.uncollided_fraction : 0);
       for (int k = 0; k < sub * quarters; ++k)
-        for (double p : d) expected.push_back(n * model.alpha_probability[b] / (sub * quarters) * p);
+        for (double p : d) expected.push_back(n * smooth / (sub * quarters) * p);
     }
+    expected.push_back(n * model.uncollided_fraction);
+    if (model.uncollided_fraction == 0) expected.pop_back(), observed.pop_back();
     Uniforms u{seed};
     for (int i = 0; i < n; ++i) {
       ExitSample x = s.sample(u(), u(), u(), u());
+      if (x.component == kUncollided) {
+        ASSERT_EQ(x.point.z, 1);
+        ASSERT_EQ(x.direction.z, 1);
+        ASSERT_EQ(x.pdf, model.uncollided_fraction);
+        observed.back() += 1;
+        continue;
+      }
       double alpha = std::atan2(std::hypot(x.point.x, x.point.y), x.point.z);
       int b = std::min(bins - 1, int(alpha / kPi * bins));
       double c0 = std::cos(model.alpha_edges[b]), c1 = std::cos(model.alpha_edges[b + 1]);
@@ -146,11 +163,12 @@ TEST(Sampler, FullSampleMatchesPdfChiSquare) {
 }
 
 TEST(Sampler, PdfOfASampleIsTheReturnedPdf) {
-  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model()}) {
+  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model())}) {
     ShellSampler s(model);
     Uniforms u{54};
     for (int i = 0; i < 20000; ++i) {
       ExitSample x = s.sample(u(), u(), u(), u());
+      if (x.component == kUncollided) continue;  // a discrete probability, checked above
       ASSERT_GT(x.pdf, 0);
       ASSERT_NEAR(s.pdf(x.point, x.direction), x.pdf, 1e-9 * x.pdf);
       ASSERT_NEAR(length(x.point), 1, 1e-12);
@@ -164,7 +182,7 @@ TEST(Sampler, PdfOfASampleIsTheReturnedPdf) {
 // beta-average at its middle; directions on a fine (z, phi) midpoint grid, which refines the
 // SH model's equal-area cells exactly and resolves the kappa = 80 lobe to ~1e-4.
 TEST(Sampler, PdfIntegratesToOne) {
-  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model()}) {
+  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model())}) {
     ShellSampler s(model);
     const int nb = 3, nz = 384, nphi = 768;
     double total = 0;
@@ -185,7 +203,8 @@ TEST(Sampler, PdfIntegratesToOne) {
         total += band / nb * directions * 4 * kPi / (nz * nphi);
       }
     }
-    EXPECT_NEAR(total, 1, 1e-3) << (model.kind == ModelKind::kVmf ? "vmf" : "sh");
+    // The smooth part's density integrates to its probability; the delta holds the rest.
+    EXPECT_NEAR(total, 1 - model.uncollided_fraction, 1e-3) << (model.kind == ModelKind::kVmf ? "vmf" : "sh");
   }
 }
 

@@ -6,6 +6,7 @@
 // probability the renderer multiplies into its throughput.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -29,6 +30,10 @@ struct StfModel {
   // The medium (of the source table) and its dimensionless numbers.
   double sigma_s = 0, sigma_a = 0, g = 0, radius = 1, tau = 0, albedo = 0;
   double escape_probability = 0, absorbed_fraction = 0, truncated_fraction = 0;
+  // Share of the escapes that left without any collision: exactly at alpha = 0 heading +z (a
+  // delta, not part of any fitted density). It is included in alpha_probability[0]; the
+  // direction model of bin 0 describes the rest of that bin.
+  double uncollided_fraction = 0;
 
   std::vector<double> alpha_edges;        // [bins + 1], 0 .. pi
   std::vector<double> alpha_probability;  // [bins], sums to 1: P(exit point in bin)
@@ -52,6 +57,10 @@ struct StfModel {
   std::vector<double> sh_chebyshev;
 
   int bins() const { return int(alpha_probability.size()); }
+  // Of alpha bin 0's escapes, the share that is the uncollided delta.
+  double uncollided_share_of_bin0() const {
+    return alpha_probability.empty() || alpha_probability[0] <= 0 ? 0 : std::min(1.0, uncollided_fraction / alpha_probability[0]);
+  }
   // Density p(w' | alpha bin) per steradian: the vMF mixture, or the tabulated clamped SH.
   double direction_pdf(int bin, const Vec3& w) const;
   void rebuild_sh_tables();

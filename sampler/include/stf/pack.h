@@ -23,7 +23,8 @@
 
 namespace stf {
 
-inline constexpr std::uint32_t kPackVersion = 1;
+// Version 2 adds each model's uncollided fraction; version-1 packs still load (fraction 0).
+inline constexpr std::uint32_t kPackVersion = 2;
 
 struct PackEntry {
   std::string name;  // e.g. the medium's name in a scene; may be empty

@@ -17,16 +17,24 @@
 
 namespace stf {
 
+// Which part of the exit distribution drew a sample.
+enum Component : int { kSmooth = 0, kUncollided = 1 };
+
 struct ExitSample {
   Vec3 point;      // on the unit sphere (local frame)
   Vec3 direction;  // unit exit direction (local frame)
-  double pdf = 0;  // per unit area of the unit sphere per steradian
+  // kSmooth: density per unit area of the unit sphere per steradian (of the smooth part, times
+  // its probability). kUncollided: the delta's discrete probability (point and direction +z).
+  double pdf = 0;
+  int component = kSmooth;
 };
 
 struct WorldExit {
   Vec3 point;      // world exit point, at distance `radius` from the start
   Vec3 direction;  // world exit direction
-  double pdf = 0;  // per unit area of the sphere of that radius per steradian
+  double pdf = 0;  // per unit area of the sphere of that radius per steradian (or, for the
+                   // uncollided delta, its discrete probability)
+  int component = kSmooth;
 };
 
 class ShellSampler {
@@ -34,10 +42,12 @@ class ShellSampler {
   // The model must be valid (as read_pack or fit/ produce it).
   explicit ShellSampler(StfModel model);
 
-  // (u0, u1, u2, u3) in [0, 1)^4: u0 picks the alpha bin (its remainder places alpha in the
-  // bin), u1 the azimuth beta, u2 the lobe or SH cell (remainder reused), u3 the rest.
+  // (u0, u1, u2, u3) in [0, 1)^4: u0 picks the alpha bin (its remainder decides the uncollided
+  // delta in bin 0 and places alpha in the bin), u1 the azimuth beta, u2 the lobe or SH cell
+  // (remainder reused), u3 the rest.
   ExitSample sample(double u0, double u1, double u2, double u3) const;
-  // The density sample() draws from; 0 where the model has no support.
+  // The density of the smooth part (times its probability) that sample() draws from; 0 where
+  // the model has no support. The uncollided delta has no density.
   double pdf(const Vec3& point, const Vec3& direction) const;
   // Probability that a path starting at the centre leaves the sphere at all.
   double escape_probability() const { return model_.escape_probability; }
@@ -65,6 +75,10 @@ class ShellSampler {
     double expm1_2k;    // expm1(-2 kappa)
   };
   double lobe_pdf(const Lobe& l, const Vec3& w) const;
+  // Probability of the smooth part in an alpha bin (bin 0 less the uncollided delta).
+  double smooth_probability(int bin) const {
+    return model_.alpha_probability[bin] - (bin == 0 ? model_.uncollided_fraction : 0.0);
+  }
   int alpha_bin_of(double cos_alpha) const;
 
   StfModel model_;
