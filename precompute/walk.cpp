@@ -37,17 +37,6 @@ void ChunkTally::clear() {
   escaped = absorbed = truncated = collisions = 0;
 }
 
-void Tally::add(const Tally& other) {
-  for (int h = 0; h < 2; ++h) {
-    for (std::size_t i = 0; i < counts[h].size(); ++i) counts[h][i] += other.counts[h][i];
-    uncollided[h] += other.uncollided[h];
-  }
-  escaped += other.escaped;
-  absorbed += other.absorbed;
-  truncated += other.truncated;
-  collisions += other.collisions;
-}
-
 AlphaBins::AlphaBins(int bins) : cos_edges_(bins + 1) {
   for (int b = 0; b <= bins; ++b) cos_edges_[b] = std::cos(kPi * b / bins);
   cos_edges_.front() = 1;

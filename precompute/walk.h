@@ -52,7 +52,6 @@ struct Tally {
   std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0;
 
   Tally(int alpha_bins, std::int64_t cells);
-  void add(const Tally& other);
 };
 
 // What the walk of one chunk books: each escape as its table index 2 (bin cells + cell) + half,
