@@ -32,3 +32,9 @@ TOML
 out=$("$work/example/walk_medium" "$work/scene.stfpack" fog 8.2 20 200)
 echo "$out"
 echo "$out" | grep -q "strides per path"
+# A medium the pack does not hold (say, a number given where the medium goes) is an error, not a
+# silent walk of nothing.
+if "$work/example/walk_medium" "$work/scene.stfpack" 8.2 20 200 2>/dev/null; then
+  echo "walk_medium accepted a medium the pack does not hold" >&2
+  exit 1
+fi

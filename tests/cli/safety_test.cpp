@@ -270,6 +270,23 @@ TEST_F(Safety, TablesBeyondMemoryAreRefusedUpFront) {
   expect_one_line(stf("build " + out("scene.toml") + " --plan-only"), "scene.toml:2: settings.grid", "scene grid");
 }
 
+// A tolerance fit may group alpha bins; plot draws the table's bin from the group holding it,
+// as eval compares it.
+TEST_F(Safety, PlotAcceptsModelsWithGroupedAlphaBins) {
+  if (!has_plotting()) GTEST_SKIP() << "needs /usr/bin/python3 with matplotlib and h5py";
+  const std::string medium = "precompute --sigma-s 8 --sigma-a 0.2 --g 0.6 --alpha-bins 18 --grid healpix:2 --quiet ";
+  ASSERT_EQ(stf(medium + "--paths 40000 --seed 1 -o " + out("t.h5")).status, 0);
+  ASSERT_EQ(stf(medium + "--paths 40000 --seed 2 -o " + out("u.h5")).status, 0);
+  Result r = stf("fit " + out("t.h5") + " --model vmf:auto --tolerance 0.3 --heldout " + out("u.h5") + " --quiet -o " +
+                 out("m.h5"));
+  ASSERT_EQ(r.status, 0) << r.err;
+  H5::H5File f(out("m.h5"), H5F_ACC_RDONLY);
+  ASSERT_LT(f.openDataSet("/alpha/probability").getSpace().getSimpleExtentNpoints(), 18) << "expected grouped bins";
+  r = stf("plot " + out("t.h5") + " --model " + out("m.h5") + " --alpha 40 -o " + out("p.png"));
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_GT(fs::file_size(out("p.png")), 1000u);
+}
+
 TEST_F(Safety, ChiSquareOnlyInFittedBins) {
   // Few paths over many alpha bins: most bins borrow a neighbour's lobes.
   ASSERT_EQ(stf("precompute --sigma-s 0.3 --sigma-a 0 --g 0.9 --alpha-bins 30 --grid healpix:4 --paths 400 --quiet -o " +
