@@ -31,6 +31,7 @@ struct FitOptions {
 std::string report_json(const fit::FitReport& r, const StfModel& m, const std::string& spec) {
   std::ostringstream s;
   s << "{\n  \"model\": \"" << spec << "\", \"chosen_size\": " << r.chosen_size << ", \"smoothing\": " << r.smoothing
+    << ", \"window\": \"" << (r.lanczos_window ? "lanczos" : "none") << "\""
     << ",\n  \"fit_time_s\": " << r.fit_time_s << ", \"model_bytes\": " << m.packed_bytes()
     << ", \"escape_probability\": " << m.escape_probability << ",\n  \"candidates\": [";
   for (std::size_t i = 0; i < r.candidates.size(); ++i)

@@ -129,7 +129,7 @@ BinFits fit_bins(const Table& t, int half, ModelKind kind, int size, const Quadr
 }
 
 // Cell probabilities of bin b under fitted parameters (vMF, or clamped smoothed SH).
-std::vector<double> bin_probabilities(const BinFits& fits, int b, ModelKind kind, int size, double t,
+std::vector<double> bin_probabilities(const BinFits& fits, int b, ModelKind kind, int size, const ShSmoothing& t,
                                       const QuadratureLevels& levels, const std::vector<double>& sh_basis) {
   if (kind == ModelKind::kVmf) {
     double kappa = 0;
@@ -185,12 +185,20 @@ double difference_error(const Table& t, int half, const HeldOut& a, const HeldOu
 // Set when the user interrupted: partial fits must not be used.
 bool cancelled(const FitSettings& s) { return s.cancel && s.cancel->load(); }
 
-const std::vector<double> kSmoothing = {0, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1};
+// SH smoothings tried on held-out data: with and without the Lanczos window, times heat
+// kernels from none to strong. A plain projection (no window, t = 0) is one of them, so a
+// fit is never forced to smooth more than the data want.
+std::vector<ShSmoothing> sh_smoothings() {
+  std::vector<ShSmoothing> out;
+  for (bool lanczos : {false, true})
+    for (double t : {0.0, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1}) out.push_back({lanczos, t});
+  return out;
+}
 
-// Fits on half 0, scores on half 1. For SH, also picks the smoothing t with the lowest
-// held-out NLL; returns it in `best_t`.
+// Fits on half 0, scores on half 1. For SH, also picks the smoothing with the lowest held-out
+// NLL; returns it in `best_t`.
 HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const DirectionGrid& grid,
-                         const QuadratureLevels& levels, double& best_t) {
+                         const QuadratureLevels& levels, ShSmoothing& best_t) {
   std::unique_ptr<ShProjector> projector;
   std::vector<double> basis;
   if (s.kind == ModelKind::kSh) {
@@ -199,9 +207,9 @@ HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const D
   }
   BinFits fits = fit_bins(t, 0, s.kind, size, levels, projector.get(), s);
   HeldOut best;
-  best_t = 0;
+  best_t = {};
   if (cancelled(s)) return best;  // bins were skipped: nothing to score
-  for (double smoothing : s.kind == ModelKind::kSh ? kSmoothing : std::vector<double>{0}) {
+  for (const ShSmoothing& smoothing : s.kind == ModelKind::kSh ? sh_smoothings() : std::vector<ShSmoothing>{{}}) {
     std::vector<std::vector<double>> p(t.alpha_bins);
     for_each_bin(t.alpha_bins, s,
                  [&](int b) { p[b] = bin_probabilities(fits, b, s.kind, size, smoothing, levels, basis); });
@@ -256,13 +264,13 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   // Model size: given, or the smallest candidate whose held-out NLL is within two standard
   // errors of the best (the larger model's gain would be noise).
   int size = s.size;
-  double smoothing = 0;
+  ShSmoothing smoothing;
   if (s.automatic || s.kind == ModelKind::kSh) {
     std::vector<int> sizes = s.automatic ? auto_candidates(s.kind) : std::vector<int>{s.size};
     std::vector<HeldOut> scores;
-    std::vector<double> ts;
+    std::vector<ShSmoothing> ts;
     for (int candidate : sizes) {
-      double best_t = 0;
+      ShSmoothing best_t;
       scores.push_back(heldout_for_size(t, s, candidate, *grid, levels, best_t));
       ts.push_back(best_t);
       if (cancelled(s)) return {};
@@ -336,7 +344,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
     }
     if (d.escapes <= 0 || m.status[b] != BinStatus::kFitted) return;
     std::vector<double> p = s.kind == ModelKind::kVmf
-                                ? bin_probabilities(fits, b, s.kind, size, 0, levels, {})
+                                ? bin_probabilities(fits, b, s.kind, size, {}, levels, {})
                                 : density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, w); },
                                                              levels.at(2));
     d.deviance = poisson_deviance(counts, p);
@@ -351,7 +359,8 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
     d.chi2_dof = chi2 / std::max(1, used - params_per_bin);
   });
   r.chosen_size = size;
-  r.smoothing = smoothing;
+  r.smoothing = smoothing.t;
+  r.lanczos_window = smoothing.lanczos;
   r.fit_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return m;
 }

@@ -45,7 +45,8 @@ struct FitReport {
   std::vector<double> heldout_nll;       // auto: held-out negative log-likelihood per size
   std::vector<double> heldout_nll_error; // auto: its standard error against the best
   int chosen_size = 0;
-  double smoothing = 0;  // sh: heat-kernel t chosen on the held-out half
+  double smoothing = 0;         // sh: heat-kernel t chosen on the held-out half
+  bool lanczos_window = false;  // sh: whether the Lanczos window was chosen there too
   double fit_time_s = 0;
 };
 

@@ -80,6 +80,7 @@ void write_model(const StfModel& m, const FitReport& r, const Provenance& p, con
       put_attr(g, "band_limit", m.band_limit);
       put_attr(g, "table_nz", m.sh_nz);
       put_attr(g, "smoothing", r.smoothing);
+      put_attr(g, "window", std::string(r.lanczos_window ? "lanczos" : "none"));
       put_dataset(g, "coefficients", {bins, hsize_t(sh_count(m.band_limit))}, m.sh.data());
       put_attr(g, "alpha_degree", m.alpha_degree);
       if (m.alpha_degree >= 0)

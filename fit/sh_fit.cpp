@@ -75,10 +75,10 @@ std::vector<double> ShProjector::project(const std::vector<double>& counts) cons
   return out;
 }
 
-void smooth_sh(std::vector<double>& c, int L, double t) {
+void smooth_sh(std::vector<double>& c, int L, const ShSmoothing& smoothing) {
   for (int l = 1; l <= L; ++l) {
     double x = kPi * l / (L + 1);
-    double factor = std::sin(x) / x * std::exp(-t * l * (l + 1));
+    double factor = (smoothing.lanczos ? std::sin(x) / x : 1.0) * std::exp(-smoothing.t * l * (l + 1));
     for (int m = -l; m <= l; ++m) c[l * l + l + m] *= factor;
   }
 }

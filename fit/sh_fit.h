@@ -26,9 +26,15 @@ class ShProjector {
   std::unique_ptr<Impl> impl_;
 };
 
-// Lanczos sigma factors against ringing (sinc(l / (L + 1))) times heat-kernel smoothing
-// exp(-t l (l + 1)), applied in place. The l = 0 term, the total mass, is untouched.
-void smooth_sh(std::vector<double>& coefficients, int band_limit, double t);
+// How a projection is smoothed: optionally Lanczos sigma factors against ringing
+// (sinc(l / (L + 1))), times heat-kernel smoothing exp(-t l (l + 1)). The fitter picks both on
+// held-out data; neither at all (a plain projection) is among the choices.
+struct ShSmoothing {
+  bool lanczos = false;
+  double t = 0;
+};
+// Applies `smoothing` in place. The l = 0 term, the total mass, is untouched.
+void smooth_sh(std::vector<double>& coefficients, int band_limit, const ShSmoothing& smoothing);
 
 // Cell probabilities of max(SH density, 0), renormalised, given the basis evaluated at the
 // quadrature points ([points * count], row-major).

@@ -66,7 +66,7 @@ TEST(ShSmoothing, WindowRemovesRingingWithoutMovingMass) {
   for (std::int64_t c = 0; c < grid->cell_count(); ++c) counts[c] = grid->centre(c).z > 0.5 ? 1 : 0;
   ShProjector projector(*grid, L);
   std::vector<double> raw = projector.project(counts), windowed = raw;
-  smooth_sh(windowed, L, 0);
+  smooth_sh(windowed, L, {true, 0});
   auto min_value = [&](const std::vector<double>& c) {
     double m = 1e300;
     for (int i = 0; i < 20000; ++i) {
