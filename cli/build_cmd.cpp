@@ -28,8 +28,12 @@ void warn_unmet(const scene::Plan& plan, bool strict) {
   for (const scene::PlanEntry* e : unmet)
     std::fprintf(stderr, "stf build: warning: tau %g albedo %g g %g (%s) is certified only within TV %.3g, not %g\n",
                  e->tau, e->albedo, e->g, e->media.front().c_str(), e->resolution.tv_bound, plan.settings.tolerance);
-  std::string summary = std::to_string(unmet.size()) + " of the scene's entries are not certified within tolerance " +
-                        std::to_string(plan.settings.tolerance);
+  int entries = 0;
+  for (const scene::PlanEntry& e : plan.entries) entries += e.action != "skip";
+  char summary_text[160];
+  std::snprintf(summary_text, sizeof summary_text, "%zu of %d entries not certified within tolerance %g", unmet.size(),
+                entries, plan.settings.tolerance);
+  const std::string summary = summary_text;
   if (strict) throw ToleranceNotMet(summary + " (--strict)");
   std::fprintf(stderr, "stf build: warning: %s\n", summary.c_str());
 }

@@ -101,8 +101,9 @@ TEST(FitTable, UncollidedEscapesAreAnExactDeltaNotALobe) {
   for (const char* spec : {"vmf:4", "sh:8"}) {
     StfModel m = fit_table(t, parse_model_spec(spec));
     EXPECT_DOUBLE_EQ(m.uncollided_fraction, uncollided / t.escaped_weight) << spec;
-    if (m.kind == ModelKind::kVmf)
+    if (m.kind == ModelKind::kVmf) {
       for (int k = 0; k < m.lobes; ++k) EXPECT_LT(m.vmf[k].kappa, 1e5) << "bin 0 lobe " << k;
+    }
     std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
     QuadratureLevels levels(*grid);
     std::vector<double> p = model_cell_probabilities(m, 0, levels);
