@@ -32,6 +32,10 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
   std::ostringstream s;
   s << "{\n  \"model\": \"" << spec << "\", \"chosen_size\": " << r.chosen_size << ", \"smoothing\": " << r.smoothing
     << ", \"window\": \"" << (r.lanczos_window ? "lanczos" : "none") << "\""
+    << ", \"family\": \"" << (m.kind == ModelKind::kVmf ? "vmf" : "sh") << "\"";
+  if (r.family_heldout_nll.size() == 2)
+    s << ", \"family_heldout_nll\": {\"vmf\": " << r.family_heldout_nll[0] << ", \"sh\": " << r.family_heldout_nll[1] << "}";
+  s
     << ",\n  \"fit_time_s\": " << r.fit_time_s << ", \"model_bytes\": " << m.packed_bytes()
     << ", \"escape_probability\": " << m.escape_probability << ",\n  \"candidates\": [";
   for (std::size_t i = 0; i < r.candidates.size(); ++i)
@@ -52,6 +56,7 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
 fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, const fit::FitSettings& settings,
                                    fit::Provenance& provenance) {
   if (o.heldout.empty()) fail("--tolerance needs --heldout: an independent table of the same medium (another --seed)");
+  if (settings.any_family) fail("--tolerance needs one model family: --model vmf:K, vmf:auto, sh:L or sh:auto");
   if (o.alpha_degree >= 0) fail("--alpha-degree and --tolerance cannot be combined");
   const double tolerance = o.tolerance;
   Table heldout = read_table(o.heldout);

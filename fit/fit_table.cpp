@@ -19,7 +19,13 @@
 namespace stf::fit {
 
 FitSettings parse_model_spec(const std::string& spec) {
-  const std::string allowed = "--model must be vmf:K (1..16), vmf:auto, sh:L (0..32) or sh:auto, got '" + spec + "'";
+  const std::string allowed =
+      "--model must be auto, vmf:K (1..16), vmf:auto, sh:L (0..32) or sh:auto, got '" + spec + "'";
+  if (spec == "auto") {
+    FitSettings s;
+    s.automatic = s.any_family = true;
+    return s;
+  }
   auto colon = spec.find(':');
   if (colon == std::string::npos) throw std::invalid_argument(allowed);
   std::string kind = spec.substr(0, colon), size = spec.substr(colon + 1);
@@ -253,7 +259,38 @@ void compress_across_alpha(StfModel& m, const std::vector<double>& escapes) {
   m.rebuild_sh_tables();
 }
 
+namespace {
+
+// --model auto: both families at their held-out sizes, scored on the same held-out half; the
+// one with the lower held-out negative log-likelihood is kept (with its report).
+StfModel fit_any_family(const Table& t, const FitSettings& s, FitReport& r) {
+  FitSettings one = s;
+  one.any_family = false;
+  FitReport reports[2];
+  StfModel models[2];
+  double nll[2];
+  for (int i = 0; i < 2; ++i) {
+    one.kind = i == 0 ? ModelKind::kVmf : ModelKind::kSh;
+    models[i] = fit_table(t, one, &reports[i]);
+    if (cancelled(s)) return {};
+    const FitReport& ri = reports[i];
+    auto chosen = std::find(ri.candidates.begin(), ri.candidates.end(), ri.chosen_size) - ri.candidates.begin();
+    nll[i] = ri.heldout_nll[std::size_t(chosen)];
+  }
+  const int best = nll[1] < nll[0] ? 1 : 0;
+  r = reports[best];
+  r.fit_time_s = reports[0].fit_time_s + reports[1].fit_time_s;
+  r.family_heldout_nll = {nll[0], nll[1]};
+  return models[best];
+}
+
+}  // namespace
+
 StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
+  if (s.any_family) {
+    FitReport local;
+    return fit_any_family(t, s, report ? *report : local);
+  }
   auto start = std::chrono::steady_clock::now();
   FitReport local;
   FitReport& r = report ? *report : local;

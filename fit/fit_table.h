@@ -15,6 +15,7 @@ struct FitSettings {
   ModelKind kind = ModelKind::kVmf;
   int size = 4;            // lobes (vmf) or band limit (sh)
   bool automatic = false;  // vmf:auto / sh:auto: size chosen by held-out error
+  bool any_family = false; // auto: vmf and sh, each at its held-out size; the lower held-out NLL wins
   int threads = 0;         // 0: all cores; results do not depend on it
   int min_escapes = 10;    // bins with fewer escapes borrow their neighbour's model
   int alpha_degree = -1;   // sh: >= 0 replaces the bins' coefficients by a Chebyshev series in cos(alpha)
@@ -23,7 +24,7 @@ struct FitSettings {
   const std::atomic<bool>* cancel = nullptr;
 };
 
-// Parses "vmf:K", "vmf:auto", "sh:L", "sh:auto" (1 <= K <= 16, 0 <= L <= 32). Throws
+// Parses "auto", "vmf:K", "vmf:auto", "sh:L", "sh:auto" (1 <= K <= 16, 0 <= L <= 32). Throws
 // std::invalid_argument naming --model and what is allowed.
 FitSettings parse_model_spec(const std::string& spec);
 
@@ -45,6 +46,7 @@ struct FitReport {
   std::vector<double> heldout_nll;       // auto: held-out negative log-likelihood per size
   std::vector<double> heldout_nll_error; // auto: its standard error against the best
   int chosen_size = 0;
+  std::vector<double> family_heldout_nll;  // auto: held-out NLL of the vmf and the sh model
   double smoothing = 0;         // sh: heat-kernel t chosen on the held-out half
   bool lanczos_window = false;  // sh: whether the Lanczos window was chosen there too
   double fit_time_s = 0;

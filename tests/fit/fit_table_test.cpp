@@ -116,6 +116,22 @@ TEST(FitTable, UncollidedEscapesAreAnExactDeltaNotALobe) {
   }
 }
 
+// --model auto: vmf and sh each at its held-out size; the family with the lower held-out NLL.
+TEST(FitTable, AutoPicksTheFamilyWithTheLowerHeldOutError) {
+  EXPECT_TRUE(parse_model_spec("auto").any_family);
+  EXPECT_THROW(parse_model_spec("auto:3"), std::invalid_argument);
+  for (Medium m : {Medium{4, 0.5, 0.3, 1}, Medium{0.8, 0.2, 0.9, 1}}) {
+    Table t = make_table(m, 40000, "healpix:4", 9);
+    FitReport r;
+    StfModel model = fit_table(t, parse_model_spec("auto"), &r);
+    ASSERT_EQ(r.family_heldout_nll.size(), 2u);
+    EXPECT_EQ(model.kind, r.family_heldout_nll[1] < r.family_heldout_nll[0] ? ModelKind::kSh : ModelKind::kVmf);
+    FitReport alone;
+    fit_table(t, parse_model_spec(model.kind == ModelKind::kVmf ? "vmf:auto" : "sh:auto"), &alone);
+    EXPECT_EQ(r.chosen_size, alone.chosen_size);
+  }
+}
+
 TEST(FitTable, VersionOneModelsStillLoad) {
   Table t = make_table({2, 0.2, 0.5, 1}, 20000);
   FitReport report;
