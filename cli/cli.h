@@ -137,5 +137,6 @@ void add_build_command(CLI::App& app);
 void add_report_command(CLI::App& app);
 void add_fit_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
+void add_render_command(CLI::App& app);
 
 }  // namespace stf::cli

@@ -36,6 +36,15 @@ class Stf:
         with h5py.File(path, "r") as f:
             return float(f.attrs["fit_time_s"]), int(f.attrs["model_bytes"])
 
+    def render(self, medium, radius, spp, method, out, seed=1, size=64, extra=()):
+        """Renders the test scene; returns (image mean, variance of mean, stats of --json)."""
+        stats = out + ".json"
+        self.run("render", "--sigma-s", medium["sigma_s"], "--sigma-a", medium["sigma_a"], "--g", medium["g"],
+                 "--radius", radius, "--width", size, "--height", size, "--spp", int(spp), "--method", method,
+                 "--seed", seed, "--quiet", "-o", out, "--json", stats, *extra)
+        with h5py.File(out, "r") as f, open(stats) as s:
+            return f["image/mean"][()], f["image/variance_of_mean"][()], json.load(s)
+
     def evaluate(self, candidate, reference, out):
         self.run("eval", candidate, "--reference", reference, "--json", out)
         with open(out) as f:

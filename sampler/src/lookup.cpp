@@ -1,15 +1,43 @@
 #include "stf/lookup.h"
 
+#include <algorithm>
+
 namespace stf {
 
 const PackEntry* find_entry(const std::vector<PackEntry>& pack, const std::string& name, double sigma_t,
                             double free_radius, double& radius) {
   const double fits = sigma_t * free_radius;
   const PackEntry* best = nullptr;
+  // Names are compared last: this runs once per path vertex, and most entries fail on tau.
   for (const PackEntry& e : pack)
-    if (e.name == name && e.model.tau <= fits && (!best || e.model.tau > best->model.tau)) best = &e;
+    if (e.model.tau <= fits && (!best || e.model.tau > best->model.tau) && e.name == name) best = &e;
   radius = best ? best->model.tau / sigma_t : 0;
   return best;
+}
+
+SphereLookup::SphereLookup(const std::vector<PackEntry>& pack, const std::string& name) {
+  for (const PackEntry& e : pack)
+    if (e.name == name) entries_.push_back(&e);
+  // Of equal taus find_entry keeps the first in pack order: sort stably, keep the first of each.
+  std::stable_sort(entries_.begin(), entries_.end(),
+                   [](const PackEntry* a, const PackEntry* b) { return a->model.tau < b->model.tau; });
+  entries_.erase(std::unique(entries_.begin(), entries_.end(),
+                             [](const PackEntry* a, const PackEntry* b) { return a->model.tau == b->model.tau; }),
+                 entries_.end());
+  for (const PackEntry* e : entries_) {
+    taus_.push_back(e->model.tau);
+    samplers_.emplace_back(e->model);
+  }
+}
+
+int SphereLookup::find(double sigma_t, double free_radius, double& radius) const {
+  const double fits = sigma_t * free_radius;
+  // taus_ ascends: the count of those that fit is one past the largest. Counting without an
+  // early exit has no branch to mispredict, and a pack has a handful of spheres per medium.
+  int i = -1;
+  for (double tau : taus_) i += tau <= fits;
+  radius = i < 0 ? 0 : taus_[std::size_t(i)] / sigma_t;
+  return i;
 }
 
 }  // namespace stf

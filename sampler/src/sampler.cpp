@@ -87,9 +87,9 @@ Vec3 ShellSampler::sample_direction(int bin, double u2, double u3) const {
   return {rho * cp, rho * sp, z};
 }
 
-ExitSample ShellSampler::sample(double u0, double u1, double u2, double u3) const {
+ExitSample ShellSampler::draw(double u0, double u1, double u2, double u3, int& bin, Vec3& local) const {
   double remainder;
-  int bin = sample_alpha_bin(u0, remainder);
+  bin = sample_alpha_bin(u0, remainder);
   ExitSample s;
   if (bin == 0) {  // the uncollided delta is part of bin 0
     const double share = model_.uncollided_share_of_bin0();
@@ -97,6 +97,7 @@ ExitSample ShellSampler::sample(double u0, double u1, double u2, double u3) cons
       s.point = s.direction = {0, 0, 1};
       s.pdf = model_.uncollided_fraction;
       s.component = kUncollided;
+      bin = -1;
       return s;
     }
     remainder = std::min((remainder - share) / (1 - share), 1.0);
@@ -105,10 +106,18 @@ ExitSample ShellSampler::sample(double u0, double u1, double u2, double u3) cons
   double cos_alpha = c0 + remainder * (c1 - c0), sin_alpha = std::sqrt(std::max(0.0, 1 - cos_alpha * cos_alpha));
   double cb, sb;
   sincos_2pi(u1, sb, cb);  // beta = 2 pi u1
-  Vec3 local = sample_direction(bin, u2, u3);
+  local = sample_direction(bin, u2, u3);
   s.point = {sin_alpha * cb, sin_alpha * sb, cos_alpha};
   s.direction = rotate_z(local, cb, sb);
-  s.pdf = smooth_probability(bin) / (2 * kPi * (c0 - c1)) * direction_pdf(bin, local);
+  return s;
+}
+
+ExitSample ShellSampler::sample(double u0, double u1, double u2, double u3) const {
+  int bin;
+  Vec3 local;
+  ExitSample s = draw(u0, u1, u2, u3, bin, local);
+  if (bin >= 0)
+    s.pdf = smooth_probability(bin) / (2 * kPi * (cos_edges_[bin] - cos_edges_[bin + 1])) * direction_pdf(bin, local);
   return s;
 }
 
@@ -137,15 +146,28 @@ Frame frame_around(const Vec3& n) {
 }
 }  // namespace
 
-WorldExit ShellSampler::sample_world(const Vec3& position, const Vec3& direction, double radius, double u0,
-                                     double u1, double u2, double u3) const {
+WorldExit ShellSampler::to_world(const Vec3& position, const Vec3& direction, double radius,
+                                  const ExitSample& s) const {
   Frame f = frame_around(direction);
-  ExitSample s = sample(u0, u1, u2, u3);
   Vec3 p = f.to_world(s.point);
   // The unit-sphere area measure scales by radius^2 on the sphere of that radius; a discrete
   // probability does not.
   return {{position.x + radius * p.x, position.y + radius * p.y, position.z + radius * p.z}, f.to_world(s.direction),
           s.component == kSmooth ? s.pdf / (radius * radius) : s.pdf, s.component};
+}
+
+WorldExit ShellSampler::sample_world(const Vec3& position, const Vec3& direction, double radius, double u0,
+                                     double u1, double u2, double u3) const {
+  return to_world(position, direction, radius, sample(u0, u1, u2, u3));
+}
+
+WorldExit ShellSampler::jump(const Vec3& position, const Vec3& direction, double radius, double u0, double u1,
+                             double u2, double u3) const {
+  int bin;
+  Vec3 local;
+  ExitSample s = draw(u0, u1, u2, u3, bin, local);
+  s.pdf = 0;
+  return to_world(position, direction, radius, s);
 }
 
 double ShellSampler::pdf_world(const Vec3& position, const Vec3& direction, double radius, const Vec3& exit_point,

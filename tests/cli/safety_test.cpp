@@ -332,6 +332,10 @@ TEST_F(Safety, InterruptsAtSeveralMomentsNeverCrash) {
       {{"fit", out("t.h5"), "--model", "vmf:8", "--quiet", "-o", out("o.h5")}, out("o.h5")},
       {{"sample", out("m.h5"), "--count", "4e6", "-o", out("o.h5")}, out("o.h5")},
       {{"build", out("scene.toml"), "--quiet", "--cache", out("cache"), "-o", out("o.stfpack")}, out("o.stfpack")},
+      {{"render", "--sigma-s", "50", "--sigma-a", "0.01", "--g", "0.9", "--spp", "1e5", "--method", "brute", "-o",
+        out("o.h5"), "--png", out("o.png")}, out("o.h5")},
+      {{"render", "--sigma-s", "20", "--sigma-a", "0", "--g", "0", "--spp", "1e5", "--method", "stf", "--cache",
+        out("cache"), "-o", out("o.h5")}, out("o.h5")},
   };
   if (has_plotting()) {
     runs.push_back({{"plot", out("t.h5"), "--alpha", "10", "-o", out("o.png")}, out("o.png")});
@@ -344,9 +348,11 @@ TEST_F(Safety, InterruptsAtSeveralMomentsNeverCrash) {
       EXPECT_TRUE(status == 130 || status == 0) << what << ": status " << status;
       if (status == 130) {
         EXPECT_FALSE(fs::exists(run.output)) << what;
+        EXPECT_FALSE(fs::exists(out("o.png"))) << what;
       }
       expect_no_temporaries();
       fs::remove_all(run.output);
+      fs::remove_all(out("o.png"));
     }
 }
 

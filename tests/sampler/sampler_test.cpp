@@ -250,6 +250,29 @@ TEST(Sampler, WorldSpaceSamplesAreRotatedLocalOnes) {
   EXPECT_GT(r.p_value, test::kChi2Alpha) << r.describe();
 }
 
+// jump() is sample_world() less the pdf: the same exit for the same uniforms, for every
+// component (the uncollided delta included), so the chi-square tests above cover it.
+TEST(Sampler, JumpIsSampleWorldWithoutThePdf) {
+  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model())}) {
+    ShellSampler s(model);
+    Uniforms u{57};
+    for (int i = 0; i < 20000; ++i) {
+      Vec3 start{u(), u(), u()}, heading = sample_vmf({1, 0, {0, 0, 1}}, u(), u());
+      double radius = 0.5 + u(), u0 = u(), u1 = u(), u2 = u(), u3 = u();
+      WorldExit full = s.sample_world(start, heading, radius, u0, u1, u2, u3);
+      WorldExit jump = s.jump(start, heading, radius, u0, u1, u2, u3);
+      ASSERT_EQ(jump.component, full.component);
+      ASSERT_EQ(jump.point.x, full.point.x);
+      ASSERT_EQ(jump.point.y, full.point.y);
+      ASSERT_EQ(jump.point.z, full.point.z);
+      ASSERT_EQ(jump.direction.x, full.direction.x);
+      ASSERT_EQ(jump.direction.y, full.direction.y);
+      ASSERT_EQ(jump.direction.z, full.direction.z);
+      ASSERT_EQ(jump.pdf, 0);
+    }
+  }
+}
+
 TEST(Sampler, ExtremeUniformsStayFinite) {
   for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model()}) {
     ShellSampler s(model);

@@ -146,8 +146,11 @@ TEST_F(SceneTest, ToleranceChoosesEachEntrysResolutionWithinTheLimits) {
   text.replace(text.find("vmf:1"), 5, "vmf:auto");
   Scene scene = read_scene(write("s.toml", text));
   Plan before = make_plan(scene, cache);
-  for (const PlanEntry& e : before.entries)
-    if (e.action == "compute") EXPECT_FALSE(e.resolution.measured);
+  for (const PlanEntry& e : before.entries) {
+    if (e.action == "compute") {
+      EXPECT_FALSE(e.resolution.measured);
+    }
+  }
   EXPECT_EQ(build(scene, before, pack, 2), 3);
   Plan after = make_plan(scene, cache);
   for (const PlanEntry& e : after.entries) {
@@ -184,6 +187,17 @@ TEST_F(SceneTest, LookupPicksTheLargestSphereThatFits) {
   EXPECT_EQ(radius, 0);
   EXPECT_EQ(find_entry(pack, "thin", 0.5, 1, radius), nullptr);
   EXPECT_EQ(find_entry(pack, "nobody", 1, 1, radius), nullptr);
+  // The inner-loop lookup gives the same sphere and radius at every free radius.
+  for (const char* name : {"a", "thin", "nobody"}) {
+    const SphereLookup lookup(pack, name);
+    for (double free = 0; free < 2; free += 0.01) {
+      double r1 = -1, r2 = -1;
+      const PackEntry* expected = find_entry(pack, name, 11, free, r1);
+      const int i = lookup.find(11, free, r2);
+      EXPECT_EQ(i < 0 ? nullptr : &lookup.entry(i), expected) << name << " " << free;
+      EXPECT_EQ(r1, r2);
+    }
+  }
 }
 
 }  // namespace

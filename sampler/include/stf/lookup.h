@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "stf/pack.h"
+#include "stf/sampler.h"
 
 namespace stf {
 
@@ -15,5 +16,24 @@ namespace stf {
 // any entry (or the medium has none): the renderer then tracks the path directly.
 const PackEntry* find_entry(const std::vector<PackEntry>& pack, const std::string& name, double sigma_t,
                             double free_radius, double& radius);
+
+// find_entry for a renderer's inner loop, where it runs at every path vertex: the spheres of
+// one medium sorted by tau once, each with its sampler, so a lookup compares doubles only.
+// Gives the same entry as find_entry. The pack must outlive it; const and thread-safe.
+class SphereLookup {
+ public:
+  SphereLookup(const std::vector<PackEntry>& pack, const std::string& name);
+  // Index of the largest sphere with tau <= sigma_t * free_radius (its radius tau / sigma_t
+  // written to `radius`), or -1 when none fits.
+  int find(double sigma_t, double free_radius, double& radius) const;
+  int size() const { return int(taus_.size()); }
+  const PackEntry& entry(int i) const { return *entries_[std::size_t(i)]; }
+  const ShellSampler& sampler(int i) const { return samplers_[std::size_t(i)]; }
+
+ private:
+  std::vector<double> taus_;  // ascending
+  std::vector<const PackEntry*> entries_;
+  std::vector<ShellSampler> samplers_;
+};
 
 }  // namespace stf

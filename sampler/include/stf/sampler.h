@@ -57,6 +57,10 @@ class ShellSampler {
                          double u2, double u3) const;
   double pdf_world(const Vec3& position, const Vec3& direction, double radius, const Vec3& exit_point,
                    const Vec3& exit_direction) const;
+  // sample_world without the pdf (WorldExit::pdf is 0), for a renderer that only jumps: the
+  // pdf's sum over lobes is most of a draw's cost, and pure path tracing never divides by it.
+  WorldExit jump(const Vec3& position, const Vec3& direction, double radius, double u0, double u1, double u2,
+                 double u3) const;
 
   // The parts, each a sample/pdf pair (for tests and for renderers that want them alone).
   int sample_alpha_bin(double u, double& remainder) const;
@@ -80,6 +84,9 @@ class ShellSampler {
     return model_.alpha_probability[bin] - (bin == 0 ? model_.uncollided_fraction : 0.0);
   }
   int alpha_bin_of(double cos_alpha) const;
+  // sample() less the pdf; `bin` is where the smooth part was drawn (-1: the delta).
+  ExitSample draw(double u0, double u1, double u2, double u3, int& bin, Vec3& local) const;
+  WorldExit to_world(const Vec3& position, const Vec3& direction, double radius, const ExitSample& s) const;
 
   StfModel model_;
   AliasTable alpha_;               // over the alpha bins

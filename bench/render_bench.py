@@ -1,0 +1,180 @@
+#!/usr/bin/python3
+"""Strided rendering against brute force: the same picture, and how much sooner.
+
+For each optical radius tau (sphere radius tau / sigma_t; sigma_t 100, albedo 0.999, g 0.8)
+renders the `stf render` scene
+  - a long brute-force reference (REF_SPP per pixel, its own seed),
+  - brute force and shell strides at each of SPP samples per pixel (other seeds),
+and measures, per method and spp, the image error against the reference
+  MSE = mean over pixels of (image - reference)^2, less the reference's own variance_of_mean,
+which estimates the error against the true image (noise and bias). The equal-error speed-up
+is (MSE_brute * seconds_brute) / (MSE_stf * seconds_stf) at the largest spp: for unbiased
+estimators error^2 * time is a constant of the method, so this is the ratio of the times the
+two need for the same error (render time only). The pack is built once through a cache
+(ascending tau, so the precompute seconds summed so far are those of the pack each tau needs)
+and `frames_to_pay_off` is the precompute time over the render time one frame saves.
+
+Correctness, at the largest spp: the strided image against the brute-force one, as 4 x 4
+pixel block sums over their combined variance (max |z|, target <= 4.5) and the whole-image
+means (relative difference, target within 1%).
+
+Writes OUT/render_bench.json, OUT/render_images.png (per tau: brute, stf, z of the
+difference) and OUT/render_error_vs_time.png. Usage:
+  bench/render_bench.py [--out DIR] [--taus 10,30,100,300] [--spp 16,64,256,1024]
+                        [--ref-spp 4096] [--size 64] [--tolerance 0.02] [--quick]
+Needs build/stf and Debian's python3-matplotlib and python3-h5py.
+"""
+import argparse
+import json
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+from stf_runs import Stf  # noqa: E402
+
+MEDIUM = {"sigma_s": 99.9, "sigma_a": 0.1, "g": 0.8}
+SIGMA_T = MEDIUM["sigma_s"] + MEDIUM["sigma_a"]
+
+
+def block_sums(image, k=4):
+    h, w = image.shape
+    return image[: h - h % k, : w - w % k].reshape(h // k, k, w // k, k).sum(axis=(1, 3))
+
+
+def block_z(a, var_a, b, var_b):
+    """z of each 4 x 4 block's difference; blocks of sky only (no variance) are NaN."""
+    var = block_sums(var_a) + block_sums(var_b)
+    diff = block_sums(a) - block_sums(b)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(var > 0, diff / np.sqrt(var), np.nan)
+
+
+def mse(image, ref, ref_var):
+    return float(np.mean((image - ref) ** 2) - np.mean(ref_var))
+
+
+def run_tau(stf, tau, a, cache, out):
+    radius = tau / SIGMA_T
+    name = f"tau{tau:g}"
+    print(f"tau {tau:g}: reference, {a.ref_spp} spp brute force", file=sys.stderr)
+    ref, ref_var, ref_stats = stf.render(MEDIUM, radius, a.ref_spp, "brute", os.path.join(out, f"{name}_ref.h5"),
+                                         seed=1000, size=a.size)
+    row = {"tau": tau, "radius": radius, "reference_spp": a.ref_spp, "reference_seconds": ref_stats["seconds"],
+           "runs": []}
+    stf_args = ["--tolerance", a.tolerance, "--cache", cache]
+    last = {}
+    for spp in a.spp:
+        for method, seed, extra in (("brute", 1, ()), ("stf", 2, stf_args)):
+            path = os.path.join(out, f"{name}_{method}_{spp}.h5")
+            mean, var, stats = stf.render(MEDIUM, radius, spp, method, path, seed=seed, size=a.size, extra=extra)
+            if method == "stf" and "precompute_seconds" not in row:
+                row["precompute_seconds"] = stats["precompute_seconds"]
+                row["spheres"] = stats["spheres"]
+            run = {"method": method, "spp": spp, "seconds": stats["seconds"], "mse": mse(mean, ref, ref_var),
+                   "mean_variance": float(np.mean(var)), "collisions": stats["collisions"],
+                   "strides": stats["strides"], "paths": stats["paths"], "mean_radiance": stats["mean_radiance"]}
+            row["runs"].append(run)
+            last[method] = (mean, var, run)
+            print(f"  {method:5s} {spp:5d} spp: {stats['seconds']:.3g} s, rmse {np.sqrt(max(run['mse'], 0)):.3g}",
+                  file=sys.stderr)
+    (bm, bv, br), (sm, sv, sr) = last["brute"], last["stf"]
+    z = block_z(sm, sv, bm, bv)
+    row["brute_collisions_per_second"] = br["collisions"] / br["seconds"]
+    row["max_block_z"] = float(np.nanmax(np.abs(z)))
+    row["mean_relative_difference"] = float(sm.mean() / bm.mean() - 1)
+    row["mean_difference_z"] = float((sm.sum() - bm.sum()) / np.sqrt(sv.sum() + bv.sum()))
+    row["speedup_equal_error"] = (br["mse"] * br["seconds"]) / (sr["mse"] * sr["seconds"]) if sr["mse"] > 0 else None
+    row["speedup_equal_variance"] = (br["mean_variance"] * br["seconds"]) / (sr["mean_variance"] * sr["seconds"])
+    return row, (bm, sm, z)
+
+
+def plot_images(rows, images, path):
+    fig, axes = plt.subplots(len(rows), 3, figsize=(10, 3.3 * len(rows)), squeeze=False)
+    for ax_row, row, (bm, sm, z) in zip(axes, rows, images):
+        vmax = max(bm.max(), sm.max())
+        tone = lambda x: 1 - np.exp(-x)  # noqa: E731 (the tone map of --png)
+        ax_row[0].imshow(tone(bm), cmap="gray", vmin=0, vmax=tone(vmax))
+        ax_row[0].set_title(f"tau {row['tau']:g}: brute force")
+        ax_row[1].imshow(tone(sm), cmap="gray", vmin=0, vmax=tone(vmax))
+        ax_row[1].set_title(f"stf ({row['spheres']} spheres)")
+        im = ax_row[2].imshow(z, cmap="coolwarm", vmin=-4.5, vmax=4.5)
+        ax_row[2].set_title(f"z, 4x4 blocks (max {row['max_block_z']:.2f})")
+        fig.colorbar(im, ax=ax_row[2])
+        for ax in ax_row:
+            ax.set_xticks([]), ax.set_yticks([])
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+
+
+def plot_error(rows, path):
+    fig, ax = plt.subplots(figsize=(7, 5))
+    for i, row in enumerate(rows):
+        color = f"C{i}"
+        for method, style in (("brute", "o--"), ("stf", "s-")):
+            runs = [r for r in row["runs"] if r["method"] == method and r["mse"] > 0]
+            ax.loglog([r["seconds"] for r in runs], [np.sqrt(r["mse"]) for r in runs], style, color=color,
+                      label=f"tau {row['tau']:g} {method}")
+    ax.set_xlabel("render seconds (wall clock)")
+    ax.set_ylabel("RMSE against the brute-force reference")
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--out", default=os.path.join(ROOT, "out", "render_bench"))
+    ap.add_argument("--taus", default="10,30,100,300")
+    ap.add_argument("--spp", default="16,64,256,1024")
+    ap.add_argument("--ref-spp", type=int, default=4096)
+    ap.add_argument("--size", type=int, default=64)
+    ap.add_argument("--tolerance", type=float, default=0.02)
+    ap.add_argument("--quick", action="store_true", help="tau 10 and 30, 32 x 32 pixels, fewer samples")
+    a = ap.parse_args()
+    if a.quick:
+        a.taus, a.spp, a.ref_spp, a.size = "10,30", "16,64", 256, 32
+    a.taus = [float(t) for t in a.taus.split(",")]
+    a.spp = [int(s) for s in a.spp.split(",")]
+    os.makedirs(a.out, exist_ok=True)
+    stf = Stf()
+    cache = os.path.join(a.out, "cache")
+    rows, images = [], []
+    for tau in sorted(a.taus):
+        row, image = run_tau(stf, tau, a, cache, a.out)
+        rows.append(row)
+        images.append(image)
+    # Ascending tau through one cache: the precompute seconds so far are those of this tau's pack.
+    total = 0.0
+    for row in rows:
+        total += row["precompute_seconds"]
+        row["precompute_seconds"] = total
+    for row in rows:
+        br = next(r for r in reversed(row["runs"]) if r["method"] == "brute")
+        sr = next(r for r in reversed(row["runs"]) if r["method"] == "stf")
+        saved = br["seconds"] * (br["mse"] / sr["mse"]) - sr["seconds"] if sr["mse"] > 0 else 0
+        row["frames_to_pay_off"] = row["precompute_seconds"] / saved if saved > 0 else None
+    result = {"medium": MEDIUM, "size": a.size, "spp": a.spp, "tolerance": a.tolerance, "taus": rows}
+    with open(os.path.join(a.out, "render_bench.json"), "w") as f:
+        json.dump(result, f, indent=1)
+    plot_images(rows, images, os.path.join(a.out, "render_images.png"))
+    plot_error(rows, os.path.join(a.out, "render_error_vs_time.png"))
+    print("| tau | brute s | stf s | speed-up at equal error | mean rel. diff | max block z | precompute s |")
+    for row in rows:
+        br = next(r for r in reversed(row["runs"]) if r["method"] == "brute")
+        sr = next(r for r in reversed(row["runs"]) if r["method"] == "stf")
+        speedup = f"{row['speedup_equal_error']:.2f}" if row["speedup_equal_error"] else "n/a"
+        print(f"| {row['tau']:g} | {br['seconds']:.3g} | {sr['seconds']:.3g} | {speedup} | "
+              f"{100 * row['mean_relative_difference']:+.2f}% | {row['max_block_z']:.2f} | "
+              f"{row['precompute_seconds']:.0f} |")
+
+
+if __name__ == "__main__":
+    main()

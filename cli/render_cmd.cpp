@@ -1,0 +1,222 @@
+// `stf render`: the test scene (render/scene.h) by brute force or through shell strides, to
+// show that a renderer using stf gets the brute-force picture, and how much sooner.
+#include <CLI/CLI.hpp>
+#include <H5Cpp.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <optional>
+
+#include "build.h"
+#include "cli.h"
+#include "h5io.h"
+#include "plan.h"
+#include "png.h"
+#include "precompute.h"
+#include "render.h"
+#include "scene.h"
+
+namespace stf::cli {
+
+namespace {
+
+struct RenderOptions {
+  Medium medium;
+  std::string width = "64", height = "64", spp, seed = "1", threads = "0";
+  std::string method, pack, cache, output, png, json;
+  double tolerance = 0.02;
+  bool quiet = false;
+};
+
+// Where packs built for renders are cached: --cache, $STF_CACHE_DIR, $XDG_CACHE_HOME/stf or
+// ~/.cache/stf.
+std::string cache_folder(const RenderOptions& o) {
+  if (!o.cache.empty()) return o.cache;
+  if (const char* d = std::getenv("STF_CACHE_DIR"); d && *d) return d;
+  if (const char* d = std::getenv("XDG_CACHE_HOME"); d && *d) return std::string(d) + "/stf";
+  if (const char* d = std::getenv("HOME"); d && *d) return std::string(d) + "/.cache/stf";
+  fail("no cache folder for the pack: give --cache (or set STF_CACHE_DIR)");
+}
+
+// The one-medium scene whose pack the render needs: spheres from tau_skip up to the whole
+// sphere, certified within `tolerance` (limits as in the default scene, healpix:16).
+scene::Scene render_scene(const RenderOptions& o) {
+  scene::Scene sc;
+  sc.path = "stf render";
+  sc.settings.tolerance = o.tolerance;
+  sc.settings.paths = 4'000'000;
+  sc.settings.grid = "healpix:16";
+  sc.settings.alpha_bins = 45;
+  sc.settings.model = "vmf:auto";
+  const Medium& m = o.medium;
+  sc.media.push_back({"render", m.sigma_s, m.sigma_a, m.g, std::min(m.radius, sc.settings.tau_skip / m.sigma_t()),
+                      m.radius, 0});
+  return sc;
+}
+
+// Builds (or finds in the cache) the pack for the medium; returns its entries and the
+// seconds spent.
+std::vector<PackEntry> build_pack(const RenderOptions& o, double& seconds) {
+  const auto start = std::chrono::steady_clock::now();
+  const scene::Scene sc = render_scene(o);
+  const scene::Plan plan = scene::make_plan(sc, cache_folder(o));
+  try {
+    scene::compute_entries(plan, int(parse_count(o.threads, "--threads", 0, 4096)),
+                           [&](int i, int n, const scene::PlanEntry& e) {
+                             if (!o.quiet)
+                               std::fprintf(stderr, "stf render: precomputing [%d/%d] tau %g albedo %g g %g\n", i + 1,
+                                            n, e.tau, e.albedo, e.g);
+                           },
+                           &interrupted);
+  } catch (const std::runtime_error&) {
+    stop_if_interrupted();  // Ctrl-C: exit 130 (finished spheres stay in the cache)
+    throw;
+  }
+  const scene::Plan built = scene::make_plan(sc, cache_folder(o));
+  for (const scene::PlanEntry* e : scene::unmet_entries(built))
+    if (!o.quiet)
+      std::fprintf(stderr, "stf render: warning: the tau %g sphere is certified only within TV %.3g, not %g\n", e->tau,
+                   e->resolution.tv_bound, o.tolerance);
+  ScratchFile pack("pack");
+  scene::write_scene_pack(sc, built, pack.path());
+  std::vector<PackEntry> entries;
+  std::string error;
+  if (!read_pack_file(pack.path(), entries, error)) fail("the pack just built: " + error);
+  seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return entries;
+}
+
+std::vector<PackEntry> read_pack_option(const std::string& path) {
+  std::vector<PackEntry> entries;
+  std::string error;
+  if (!read_pack_file(path, entries, error)) fail("--pack: " + path + ": " + error);
+  return entries;
+}
+
+void write_image(AtomicOutput& out, const render::Image& image, const RenderOptions& o, std::int64_t spp,
+                 std::int64_t seed) {
+  {
+    H5::Exception::dontPrint();
+    H5::H5File file(out.temp_path(), H5F_ACC_TRUNC);
+    h5::put_attr(file, "method", o.method);
+    h5::put_attr(file, "spp", spp);
+    h5::put_attr(file, "seed", seed);
+    h5::put_attr(file, "seconds", image.seconds);
+    h5::put_attr(file, "sigma_s", o.medium.sigma_s);
+    h5::put_attr(file, "sigma_a", o.medium.sigma_a);
+    h5::put_attr(file, "g", o.medium.g);
+    h5::put_attr(file, "radius", o.medium.radius);
+    H5::Group g = file.createGroup("/image");
+    const std::vector<hsize_t> dims{hsize_t(image.height), hsize_t(image.width)};
+    h5::put_dataset(g, "mean", dims, image.mean.data());
+    h5::put_dataset(g, "variance_of_mean", dims, image.variance_of_mean.data());
+  }
+  out.commit();
+}
+
+std::string shortest(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", x);
+  return buf;
+}
+
+std::string stats_json(const render::Image& image, double precompute_seconds, int spheres) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "{\"seconds\": %.6g, \"precompute_seconds\": %.6g, \"paths\": %lld, \"collisions\": %lld, "
+                "\"strides\": %lld, \"mean_radiance\": %.10g, \"spheres\": %d}\n",
+                image.seconds, precompute_seconds, (long long)image.paths, (long long)image.collisions,
+                (long long)image.strides, image.mean_radiance(), spheres);
+  return buf;
+}
+
+void run_render(const RenderOptions& o, const CLI::App& cmd) {
+  if (auto error = validate(o.medium, PrecomputeSettings{})) fail(*error);
+  const bool stf = o.method == "stf";
+  if (!stf && (cmd.count("--pack") || cmd.count("--tolerance")))
+    fail("--pack and --tolerance apply to --method stf only");
+  if (cmd.count("--pack") && cmd.count("--tolerance"))
+    fail("--pack and --tolerance exclude each other: --tolerance builds the pack");
+  if (!(o.tolerance > 0 && o.tolerance < 1)) fail("--tolerance must be in (0, 1), got " + std::to_string(o.tolerance));
+  render::ImageSettings s;
+  s.width = int(parse_count(o.width, "--width", 1, 8192));
+  s.height = int(parse_count(o.height, "--height", 1, 8192));
+  s.spp = parse_count(o.spp, "--spp", 1, std::int64_t(1) << 40);
+  const std::int64_t seed = parse_count(o.seed, "--seed", 0, INT64_MAX);
+  s.seed = std::uint64_t(seed);
+  s.threads = int(parse_count(o.threads, "--threads", 0, 4096));
+
+  // Every output claimed before any work; none may be the pack or another output.
+  std::vector<NamedFile> keep{{o.pack, "--pack"}};
+  AtomicOutput image_out(o.output, "-o", keep);
+  keep.push_back(image_out.named());
+  std::optional<AtomicOutput> png_out, json_out;
+  if (!o.png.empty()) png_out.emplace(o.png, "--png", keep), keep.push_back(png_out->named());
+  if (!o.json.empty()) json_out.emplace(o.json, "--json", keep);
+
+  double precompute_seconds = 0;
+  std::unique_ptr<render::Method> method;
+  int spheres = 0;
+  if (stf) {
+    auto strides = std::make_unique<render::ShellStrides>(
+        o.medium, o.pack.empty() ? build_pack(o, precompute_seconds) : read_pack_option(o.pack));
+    spheres = strides->spheres();
+    if (!o.pack.empty() && spheres == 0)  // most likely the pack of another medium
+      fail("--pack: " + o.pack + " has no sphere of albedo " + shortest(o.medium.albedo()) + " and g " +
+           shortest(o.medium.g));
+    method = std::move(strides);
+  } else {
+    method = std::make_unique<render::BruteForce>(o.medium);
+  }
+  ProgressBar bar("render", o.quiet);
+  render::Image image = render::render(
+      o.medium, *method, s, [&](std::int64_t done, std::int64_t total, double t) { bar.update(done, total, t); },
+      &interrupted);
+  bar.finish();
+  stop_if_interrupted();
+  write_image(image_out, image, o, s.spp, seed);
+  if (png_out) write_file(*png_out, render::encode_png(render::tone_map(image.mean), image.width, image.height));
+  if (json_out) write_file(*json_out, stats_json(image, precompute_seconds, spheres));
+  if (!o.quiet)
+    std::fprintf(stderr,
+                 "stf render: %s, %lld paths in %.3g s (%.3g collisions, %.3g strides per path), mean radiance %.6g "
+                 "-> %s\n",
+                 o.method.c_str(), (long long)image.paths, image.seconds, double(image.collisions) / double(image.paths),
+                 double(image.strides) / double(image.paths), image.mean_radiance(), o.output.c_str());
+}
+
+}  // namespace
+
+void add_render_command(CLI::App& app) {
+  auto o = std::make_shared<RenderOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "render", "Render a sphere of medium under sky and sun, by brute force or through precomputed spheres");
+  cmd->add_option("--sigma-s", o->medium.sigma_s, "Scattering coefficient (>= 0)")->required();
+  cmd->add_option("--sigma-a", o->medium.sigma_a, "Absorption coefficient (>= 0)")->required();
+  cmd->add_option("--g", o->medium.g, "Henyey-Greenstein asymmetry, in (-1, 1)")->required();
+  cmd->add_option("--radius", o->medium.radius, "Radius of the sphere of medium (> 0)")->capture_default_str();
+  cmd->add_option("--width", o->width, "Image width in pixels")->capture_default_str();
+  cmd->add_option("--height", o->height, "Image height in pixels")->capture_default_str();
+  cmd->add_option("--spp", o->spp, "Camera paths per pixel (e.g. 64)")->required();
+  cmd->add_option("--method", o->method, "brute: track every collision; stf: stride through precomputed spheres")
+      ->required()
+      ->check(CLI::IsMember({"brute", "stf"}));
+  cmd->add_option("--pack", o->pack, "Pack with spheres of this medium (stf build); default: build one")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--tolerance", o->tolerance, "Without --pack: TV tolerance of the spheres built")
+      ->capture_default_str();
+  cmd->add_option("--cache", o->cache,
+                  "Cache of the spheres built (default: $STF_CACHE_DIR, else $XDG_CACHE_HOME/stf or ~/.cache/stf)");
+  cmd->add_option("--seed", o->seed, "Random seed; the same seed gives the same image for any --threads")
+      ->capture_default_str();
+  cmd->add_option("--threads", o->threads, "Worker threads (0: all cores)")->capture_default_str();
+  cmd->add_option("-o,--output", o->output, "Output image (HDF5: /image/mean, /image/variance_of_mean)")->required();
+  cmd->add_option("--png", o->png, "Also write the image tone-mapped as PNG");
+  cmd->add_option("--json", o->json, "Write run statistics (seconds, collisions, strides) as JSON");
+  cmd->add_flag("--quiet", o->quiet, "No progress bar and no summary line");
+  cmd->callback([o, cmd] { run_render(*o, *cmd); });
+}
+
+}  // namespace stf::cli

@@ -1,0 +1,88 @@
+#include "render.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <mutex>
+#include <thread>
+
+namespace stf::render {
+
+namespace {
+
+struct PixelResult {
+  double mean = 0, variance_of_mean = 0;
+};
+
+// One pixel's samples, jittered over its area, with Welford's running mean and variance.
+PixelResult render_pixel(const Medium& medium, const Method& method, const ImageSettings& s, int px, int py,
+                         PathCounters& counters, const std::atomic<bool>* cancel) {
+  PixelRng rng(s.seed, std::uint64_t(py) * std::uint64_t(s.width) + std::uint64_t(px));
+  double mean = 0, m2 = 0;
+  for (std::int64_t k = 0; k < s.spp; ++k) {
+    if (cancel && cancel->load(std::memory_order_relaxed)) return {};
+    const double jx = rng.uniform(), jy = rng.uniform();
+    const Ray ray = camera_ray(px + jx, py + jy, s.width, s.height, medium.radius);
+    Vec3 entry;
+    const double value = enter_sphere(ray, medium.radius, entry) ? method.radiance(entry, ray.direction, rng, counters)
+                                                                 : sky_radiance(ray.direction);
+    const double delta = value - mean;
+    mean += delta / double(k + 1);
+    m2 += delta * (value - mean);
+  }
+  const double n = double(s.spp);
+  return {mean, s.spp > 1 ? m2 / (n - 1) / n : 0};
+}
+
+}  // namespace
+
+double Image::mean_radiance() const {
+  double sum = 0;
+  for (double v : mean) sum += v;
+  return mean.empty() ? 0 : sum / double(mean.size());
+}
+
+Image render(const Medium& medium, const Method& method, const ImageSettings& s, const RenderProgress& progress,
+             const std::atomic<bool>* cancel) {
+  const auto start = std::chrono::steady_clock::now();
+  const auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
+  Image image;
+  image.width = s.width, image.height = s.height;
+  const std::int64_t pixels = std::int64_t(s.width) * s.height;
+  image.mean.assign(std::size_t(pixels), 0);
+  image.variance_of_mean.assign(std::size_t(pixels), 0);
+  const int threads = s.threads > 0 ? s.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+
+  std::atomic<std::int64_t> next{0}, done{0};
+  std::mutex mutex;
+  double reported = 0;  // seconds at the last progress call (under `mutex`)
+  auto stop = [&] { return cancel && cancel->load(std::memory_order_relaxed); };
+  auto report = [&] {
+    std::unique_lock<std::mutex> lock(mutex, std::try_to_lock);
+    if (!lock || seconds() < reported + 0.2) return;
+    reported = seconds();
+    progress(done.load() * s.spp, pixels * s.spp, reported);
+  };
+  auto worker = [&] {
+    PathCounters counters;
+    for (std::int64_t p; !stop() && (p = next.fetch_add(1)) < pixels;) {
+      const PixelResult r = render_pixel(medium, method, s, int(p % s.width), int(p / s.width), counters, cancel);
+      image.mean[std::size_t(p)] = r.mean;
+      image.variance_of_mean[std::size_t(p)] = r.variance_of_mean;
+      done.fetch_add(1);
+      if (progress) report();
+    }
+    std::lock_guard<std::mutex> lock(mutex);  // integer sums: the same for any thread count
+    image.collisions += counters.collisions;
+    image.strides += counters.strides;
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < std::min<std::int64_t>(threads, pixels); ++t) pool.emplace_back(worker);
+  for (std::thread& t : pool) t.join();
+  image.paths = done.load() * s.spp;
+  image.seconds = seconds();
+  if (progress && !stop()) progress(image.paths, pixels * s.spp, image.seconds);
+  return image;
+}
+
+}  // namespace stf::render

@@ -1,0 +1,83 @@
+// The two ways `stf render` follows a path through the medium, behind one interface:
+// BruteForce tracks every collision; ShellStrides jumps through precomputed spheres where one
+// fits and tracks collisions only where none does (DESIGN: docs/render.md).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <stf/lookup.h>
+#include <stf/pack.h>
+#include <stf/sampler.h>
+
+#include "hg.h"
+#include "pixel_rng.h"
+#include "scene.h"
+
+namespace stf::render {
+
+struct PathCounters {
+  std::int64_t collisions = 0;  // free flights ended by a collision
+  std::int64_t strides = 0;     // jumps through a precomputed sphere
+};
+
+// Paths whose throughput falls below this play Russian roulette (survivors carry exactly it),
+// so no path is followed long after it stopped mattering and none is cut off with bias.
+inline constexpr double kRouletteBelow = 0.25;
+
+// What both methods share: one free flight from x along w, then either the path leaves the
+// sphere (true: it is heading w) or it collides, its throughput scaled by the albedo and w
+// redrawn from Henyey-Greenstein.
+class CollisionWalk {
+ public:
+  explicit CollisionWalk(const Medium& m);
+  bool leaves_after_flight(Vec3& x, Vec3& w, double& throughput, PixelRng& rng) const;
+
+ private:
+  double inv_sigma_t_, albedo_, radius2_;
+  HgParams<double> hg_;
+};
+
+// False when the path ends in Russian roulette; a survivor's throughput is raised to the
+// threshold.
+bool survives_roulette(double& throughput, PixelRng& rng);
+
+class Method {
+ public:
+  virtual ~Method() = default;
+  // Radiance carried back along a camera path that enters the medium at `entry` heading
+  // `direction`.
+  virtual double radiance(const Vec3& entry, const Vec3& direction, PixelRng& rng, PathCounters& counters) const = 0;
+};
+
+class BruteForce final : public Method {
+ public:
+  explicit BruteForce(const Medium& m) : walk_(m) {}
+  double radiance(const Vec3& entry, const Vec3& direction, PixelRng& rng, PathCounters& counters) const override;
+
+ private:
+  CollisionWalk walk_;
+};
+
+// Strides through the precomputed spheres in `pack` whose albedo and g are the medium's
+// (their names are ignored); with none, it is BruteForce draw for draw.
+class ShellStrides final : public Method {
+ public:
+  ShellStrides(const Medium& m, const std::vector<PackEntry>& pack);
+  ShellStrides(const ShellStrides&) = delete;  // spheres_ points into entries_
+  ShellStrides& operator=(const ShellStrides&) = delete;
+  double radiance(const Vec3& entry, const Vec3& direction, PixelRng& rng, PathCounters& counters) const override;
+  int spheres() const { return spheres_.size(); }
+
+ private:
+  Medium medium_;
+  CollisionWalk walk_;
+  std::vector<PackEntry> entries_;  // the medium's, all under one name
+  SphereLookup spheres_;            // over entries_
+};
+
+// Entries of `pack` computed for this medium's albedo and g (relative difference below 1e-9).
+std::vector<PackEntry> entries_for(const Medium& m, const std::vector<PackEntry>& pack);
+
+}  // namespace stf::render

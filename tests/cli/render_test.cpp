@@ -1,0 +1,177 @@
+// `stf render` (CONTRACT.md): the strided image against the brute-force one, the image layout,
+// the PNG, and bad input.
+#include <H5Cpp.h>
+
+#include <cmath>
+
+#include "cli_fixture.h"
+#include "h5io.h"
+
+namespace {
+
+// A sphere of optical radius 8 and the pack of its tau 2 and 4 spheres, built once.
+const std::string kThick = "--sigma-s 7.92 --sigma-a 0.08 --g 0.5 --width 32 --height 32 ";
+const char* kScene =
+    "[settings]\npaths = 2e5\ngrid = \"healpix:8\"\nalpha_bins = 30\nmodel = \"vmf:auto\"\n"
+    "[[media]]\nname = \"thick\"\nsigma_s = 7.92\nsigma_a = 0.08\ng = 0.5\nradius_min = 0.25\nradius_max = 0.5\n";
+
+struct RenderedImage {
+  std::vector<double> mean, variance_of_mean;
+};
+
+RenderedImage read_image(const std::string& path, hsize_t height, hsize_t width) {
+  H5::H5File f(path, H5F_ACC_RDONLY);
+  return {stf::h5::get_dataset(f, "/image/mean", {height, width}),
+          stf::h5::get_dataset(f, "/image/variance_of_mean", {height, width})};
+}
+
+class Render : public Cli {
+ protected:
+  static void SetUpTestSuite() {
+    pack_dir_ = fs::path(::testing::TempDir()) / ("stf_render_pack_" + std::to_string(::getpid()));
+    fs::create_directories(pack_dir_);
+    std::ofstream(pack_dir_ / "scene.toml") << kScene;
+    const std::string cmd = std::string(STF_BINARY) + " build " + (pack_dir_ / "scene.toml").string() + " --quiet --cache " +
+                            (pack_dir_ / "cache").string() + " -o " + pack().string();
+    ASSERT_EQ(std::system(cmd.c_str()), 0);
+  }
+  static void TearDownTestSuite() { fs::remove_all(pack_dir_); }
+  static fs::path pack() { return pack_dir_ / "thick.stfpack"; }
+
+  void expect_one_line(const Result& r, const std::string& names, const std::string& what) {
+    EXPECT_EQ(r.status, 2) << what << "\n" << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << what << "\n" << r.err;
+    EXPECT_NE(r.err.find(names), std::string::npos) << what << "\n" << r.err;
+  }
+
+  static fs::path pack_dir_;
+};
+fs::path Render::pack_dir_;
+
+// The targets of the strided method: no 4 x 4 block of pixels beyond 4.5 sigma on the two
+// images' combined variance, and the whole image's mean within 1% (and within its noise).
+TEST_F(Render, StridedImageAgreesWithBruteForceWithinNoise) {
+  // Different seeds: the same seed would jitter both images alike, correlating them.
+  const std::string common = kThick + "--spp 4096 --quiet ";
+  Result brute = stf("render " + common + "--seed 5 --method brute -o " + out("b.h5"));
+  ASSERT_EQ(brute.status, 0) << brute.err;
+  Result strided = stf("render " + common + "--seed 6 --method stf --pack " + pack().string() + " -o " + out("s.h5") +
+                       " --json " + out("s.json"));
+  ASSERT_EQ(strided.status, 0) << strided.err;
+  std::ifstream json(out("s.json"));
+  std::string stats((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(stats.find("\"strides\": 0,"), std::string::npos) << "no strides taken: " << stats;
+
+  const RenderedImage b = read_image(out("b.h5"), 32, 32), s = read_image(out("s.h5"), 32, 32);
+  double sum_b = 0, sum_s = 0, var = 0;
+  int blocks = 0;
+  for (int by = 0; by < 8; ++by)
+    for (int bx = 0; bx < 8; ++bx) {
+      double diff = 0, v = 0;
+      for (int y = 4 * by; y < 4 * by + 4; ++y)
+        for (int x = 4 * bx; x < 4 * bx + 4; ++x) {
+          const std::size_t i = std::size_t(32 * y + x);
+          diff += b.mean[i] - s.mean[i];
+          v += b.variance_of_mean[i] + s.variance_of_mean[i];
+        }
+      var += v;
+      if (v == 0) {  // the block sees only sky
+        EXPECT_EQ(diff, 0);
+        continue;
+      }
+      ++blocks;
+      EXPECT_LT(std::abs(diff) / std::sqrt(v), 4.5) << "block " << bx << ", " << by;
+    }
+  EXPECT_GT(blocks, 20);
+  for (std::size_t i = 0; i < b.mean.size(); ++i) sum_b += b.mean[i], sum_s += s.mean[i];
+  EXPECT_NEAR(sum_s / sum_b, 1, 0.01);
+  EXPECT_LT(std::abs(sum_s - sum_b) / std::sqrt(var), 4.5);
+}
+
+// Too thin for the smallest sphere anywhere: the pack built through the cache is empty and
+// the strided image is the brute-force one, bit for bit.
+TEST_F(Render, ThinMediumGivesTheBruteForceImage) {
+  const std::string medium = "--sigma-s 1.2 --sigma-a 0.3 --g 0.5 --width 24 --height 16 --spp 64 --quiet ";
+  ASSERT_EQ(stf("render " + medium + "--method brute -o " + out("b.h5")).status, 0);
+  Result r = stf("render " + medium + "--method stf --cache " + out("cache") + " -o " + out("s.h5") + " --json " +
+                 out("s.json"));
+  ASSERT_EQ(r.status, 0) << r.err;
+  const RenderedImage b = read_image(out("b.h5"), 16, 24), s = read_image(out("s.h5"), 16, 24);
+  EXPECT_EQ(b.mean, s.mean);
+  EXPECT_EQ(b.variance_of_mean, s.variance_of_mean);
+  std::ifstream json(out("s.json"));
+  std::string stats((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+  EXPECT_NE(stats.find("\"strides\": 0,"), std::string::npos) << stats;
+  EXPECT_NE(stats.find("\"spheres\": 0"), std::string::npos) << stats;
+}
+
+TEST_F(Render, SameSeedSameImageForOneAndThreeThreads) {
+  for (const std::string& method : std::vector<std::string>{"brute", "stf --pack " + pack().string()}) {
+    const std::string common = kThick + "--spp 32 --seed 9 --quiet --method " + method;
+    ASSERT_EQ(stf("render " + common + " --threads 1 -o " + out("1.h5")).status, 0);
+    ASSERT_EQ(stf("render " + common + " --threads 3 -o " + out("3.h5")).status, 0);
+    const RenderedImage one = read_image(out("1.h5"), 32, 32), three = read_image(out("3.h5"), 32, 32);
+    EXPECT_EQ(one.mean, three.mean) << method;
+    EXPECT_EQ(one.variance_of_mean, three.variance_of_mean) << method;
+    fs::remove(out("1.h5")), fs::remove(out("3.h5"));
+  }
+}
+
+// The image layout of CONTRACT.md and a PNG of the stated size.
+TEST_F(Render, WritesTheContractLayoutAndAPng) {
+  Result r = stf("render --sigma-s 7.92 --sigma-a 0.08 --g 0.5 --width 32 --height 20 --spp 4 --seed 3 --method brute "
+                 "--quiet -o " + out("i.h5") +
+                 " --png " + out("i.png"));
+  ASSERT_EQ(r.status, 0) << r.err;
+  H5::H5File f(out("i.h5"), H5F_ACC_RDONLY);
+  EXPECT_EQ(stf::h5::dataset_shape(f, "/image/mean"), (std::vector<hsize_t>{20, 32}));
+  EXPECT_EQ(stf::h5::dataset_shape(f, "/image/variance_of_mean"), (std::vector<hsize_t>{20, 32}));
+  EXPECT_EQ(stf::h5::get_double(f, "spp"), 4);
+  EXPECT_EQ(stf::h5::get_double(f, "seed"), 3);
+  EXPECT_EQ(stf::h5::get_double(f, "sigma_s"), 7.92);
+  EXPECT_EQ(stf::h5::get_double(f, "radius"), 1);
+  EXPECT_GE(stf::h5::get_double(f, "seconds"), 0);
+  std::ifstream png(out("i.png"), std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(png)), std::istreambuf_iterator<char>());
+  ASSERT_GT(bytes.size(), 33u);
+  EXPECT_EQ(bytes.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  EXPECT_EQ(bytes.substr(12, 4), "IHDR");
+  auto be32 = [&](std::size_t at) {
+    return (unsigned(std::uint8_t(bytes[at])) << 24) | (unsigned(std::uint8_t(bytes[at + 1])) << 16) |
+           (unsigned(std::uint8_t(bytes[at + 2])) << 8) | unsigned(std::uint8_t(bytes[at + 3]));
+  };
+  EXPECT_EQ(be32(16), 32u);
+  EXPECT_EQ(be32(20), 20u);
+  EXPECT_EQ(bytes.substr(bytes.size() - 8, 4), "IEND");
+}
+
+TEST_F(Render, BadInputIsOneLineAndNoFile) {
+  const std::string ok = "render --sigma-s 2 --sigma-a 0.1 --g 0.3 --spp 4 ";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"render --sigma-s -1 --sigma-a 0.1 --g 0.3 --spp 4 --method brute", "sigma"},
+      {"render --sigma-s 2 --sigma-a 0.1 --g 1.5 --spp 4 --method brute", "g"},
+      {ok + "--method brute --radius 0", "radius"},
+      {ok + "--method brute --width 0", "width"},
+      {ok + "--method brute --height 100000", "height"},
+      {"render --sigma-s 2 --sigma-a 0.1 --g 0.3 --spp 0 --method brute", "spp"},
+      {ok + "--method walk", "method"},
+      {ok + "--method brute --pack " + pack().string(), "--pack"},
+      {ok + "--method brute --tolerance 0.05", "--tolerance"},
+      {ok + "--method stf --pack " + pack().string() + " --tolerance 0.05", "--tolerance"},
+      {ok + "--method stf --pack " + out("missing.stfpack"), "missing.stfpack"},
+      {ok + "--method stf --tolerance -1", "tolerance"},
+      {ok + "--method brute --threads -2", "threads"},
+  };
+  for (const auto& [args, names] : cases) {
+    expect_one_line(stf(args + " -o " + out("i.h5") + " --png " + out("i.png")), names, args);
+    EXPECT_FALSE(fs::exists(out("i.h5"))) << args;
+    EXPECT_FALSE(fs::exists(out("i.png"))) << args;
+  }
+  // A pack without this medium is refused, not rendered without strides.
+  expect_one_line(stf("render --sigma-s 2 --sigma-a 0.1 --g 0.3 --spp 4 --method stf --pack " + pack().string() +
+                      " -o " + out("i.h5")),
+                  "pack", "foreign pack");
+  EXPECT_FALSE(fs::exists(out("i.h5")));
+}
+
+}  // namespace

@@ -1,0 +1,106 @@
+// The path tracer of render/ against exact results: a purely absorbing sphere (its image is
+// the transmittance along each camera ray) and the identities that make the two methods
+// comparable (the same image for any thread count; strides never taken where no sphere fits).
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "render.h"
+
+namespace stf::render {
+namespace {
+
+// exp(-sigma_t * chord) averaged over the pixel's area (a sub-pixel midpoint grid): what a
+// pixel of a pure absorber converges to. Camera rays head away from the sun, so the sky behind
+// is 1 everywhere.
+double pixel_transmittance(const Medium& m, int px, int py, int width, int height) {
+  const int sub = 64;
+  double sum = 0;
+  for (int i = 0; i < sub; ++i)
+    for (int j = 0; j < sub; ++j) {
+      const Ray ray = camera_ray(px + (i + 0.5) / sub, py + (j + 0.5) / sub, width, height, m.radius);
+      const double b = dot(ray.origin, ray.direction), c = dot(ray.origin, ray.origin) - m.radius * m.radius;
+      const double chord = b * b > c && b < 0 ? 2 * std::sqrt(b * b - c) : 0;
+      sum += std::exp(-m.sigma_t() * chord) * sky_radiance(ray.direction);
+    }
+  return sum / (sub * sub);
+}
+
+TEST(Render, PureAbsorberGivesTheTransmittance) {
+  Medium m;
+  m.sigma_s = 0, m.sigma_a = 1.5, m.g = 0, m.radius = 1;
+  BruteForce brute(m);
+  ImageSettings s;
+  s.width = s.height = 12;
+  s.spp = 4000;
+  s.seed = 7;
+  const Image image = render(m, brute, s);
+  // Each sample is 0 or 1 (absorbed or through): z-scores on the estimator's own variance.
+  // Where every sample went through, the pixel (sky, or a sliver of the sphere's rim) absorbs
+  // with a probability of a few per spp at most.
+  double z2 = 0;
+  int counted = 0;
+  for (int py = 0; py < s.height; ++py)
+    for (int px = 0; px < s.width; ++px) {
+      const std::size_t i = std::size_t(py * s.width + px);
+      const double exact = pixel_transmittance(m, px, py, s.width, s.height);
+      const double sd = std::sqrt(image.variance_of_mean[i]);
+      if (sd == 0) {
+        EXPECT_NEAR(image.mean[i], exact, 5.0 / double(s.spp)) << "pixel " << px << ", " << py;
+        continue;
+      }
+      const double z = (image.mean[i] - exact) / sd;
+      EXPECT_LT(std::abs(z), 5) << "pixel " << px << ", " << py << ": " << image.mean[i] << " vs " << exact;
+      z2 += z * z, ++counted;
+    }
+  ASSERT_GT(counted, 50);
+  // The mean squared z-score of n pixels is 1 +- sqrt(2 / n).
+  EXPECT_NEAR(z2 / counted, 1, 5 * std::sqrt(2.0 / counted));
+}
+
+TEST(Render, SameImageForAnyThreadCount) {
+  Medium m;
+  m.sigma_s = 9, m.sigma_a = 0.2, m.g = 0.7, m.radius = 1;
+  BruteForce brute(m);
+  ImageSettings s;
+  s.width = 20, s.height = 14;
+  s.spp = 8;
+  s.threads = 1;
+  const Image one = render(m, brute, s);
+  s.threads = 3;
+  const Image three = render(m, brute, s);
+  EXPECT_EQ(one.mean, three.mean);
+  EXPECT_EQ(one.variance_of_mean, three.variance_of_mean);
+  EXPECT_EQ(one.collisions, three.collisions);
+}
+
+// Without a sphere that fits, the strided method takes exactly the brute-force steps.
+TEST(Render, StridesWithoutSpheresAreBruteForce) {
+  Medium m;
+  m.sigma_s = 1.2, m.sigma_a = 0.3, m.g = 0.5, m.radius = 1;
+  BruteForce brute(m);
+  ShellStrides strides(m, {});
+  ImageSettings s;
+  s.width = s.height = 16;
+  s.spp = 16;
+  const Image a = render(m, brute, s), b = render(m, strides, s);
+  EXPECT_EQ(a.mean, b.mean);
+  EXPECT_EQ(a.collisions, b.collisions);
+  EXPECT_EQ(b.strides, 0);
+}
+
+TEST(Render, CancelStopsEarly) {
+  Medium m;
+  m.sigma_s = 50, m.sigma_a = 0.01, m.g = 0.9, m.radius = 1;
+  BruteForce brute(m);
+  ImageSettings s;
+  s.spp = 1000000;
+  std::atomic<bool> cancel{false};
+  int calls = 0;
+  const Image image = render(m, brute, s, [&](std::int64_t, std::int64_t, double) { ++calls, cancel = true; }, &cancel);
+  EXPECT_TRUE(cancel.load());
+  EXPECT_LT(image.paths, std::int64_t(s.width) * s.height * s.spp);
+}
+
+}  // namespace
+}  // namespace stf::render
