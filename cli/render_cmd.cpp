@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <H5Cpp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -40,7 +41,12 @@ std::string cache_folder(const RenderOptions& o) {
   fail("no cache folder for the pack: give --cache (or set STF_CACHE_DIR)");
 }
 
-// The one-medium scene whose pack the render needs: spheres from tau_skip up to the whole
+// Strides through spheres below this optical radius cost more than the collisions they
+// replace: a stride costs about as much as 4-5 collisions, and a path crosses a tau-2 sphere in
+// ~2 collisions, a tau-4 one in ~5, a tau-8 one in ~13 (docs/render.md has the measurement).
+constexpr double kSmallestStrideTau = 4;
+
+// The one-medium scene whose pack the render needs: spheres from tau 4 up to the whole
 // sphere, certified within `tolerance` (limits as in the default scene, healpix:16).
 scene::Scene render_scene(const RenderOptions& o) {
   scene::Scene sc;
@@ -51,8 +57,8 @@ scene::Scene render_scene(const RenderOptions& o) {
   sc.settings.alpha_bins = 45;
   sc.settings.model = "vmf:auto";
   const Medium& m = o.medium;
-  sc.media.push_back({"render", m.sigma_s, m.sigma_a, m.g, std::min(m.radius, sc.settings.tau_skip / m.sigma_t()),
-                      m.radius, 0});
+  const double smallest = std::max(sc.settings.tau_skip, kSmallestStrideTau);
+  sc.media.push_back({"render", m.sigma_s, m.sigma_a, m.g, std::min(m.radius, smallest / m.sigma_t()), m.radius, 0});
   return sc;
 }
 

@@ -92,6 +92,7 @@ class ShellSampler {
   AliasTable alpha_;               // over the alpha bins
   std::vector<double> cos_edges_;  // [bins + 1], decreasing
   std::vector<Lobe> lobes_;        // vmf: [bins * lobes]
+  std::vector<double> lobe_cdf_;   // vmf: [bins * lobes], running sums of each bin's weights
   std::vector<AliasTable> cells_;  // sh: per bin, over its equal-area cells
 };
 
