@@ -1,6 +1,6 @@
 // The two ways `stf render` follows a path through the medium, behind one interface:
 // BruteForce tracks every collision; ShellStrides jumps through precomputed spheres where one
-// fits and tracks collisions only where none does (DESIGN: docs/render.md).
+// fits and tracks collisions only where none does (docs/render.md).
 #pragma once
 
 #include <cstdint>
