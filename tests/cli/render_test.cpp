@@ -105,6 +105,28 @@ TEST_F(Render, ThinMediumGivesTheBruteForceImage) {
   EXPECT_NE(stats.find("\"spheres\": 0"), std::string::npos) << stats;
 }
 
+// Without --pack the medium's pack is built into the cache once; the next render of the medium
+// takes it from there (the same spheres: the same image) and reports almost no precompute.
+TEST_F(Render, SecondRenderReusesTheCachedPack) {
+  const std::string args = "render --sigma-s 4.9 --sigma-a 0.1 --g 0.5 --width 16 --height 16 --spp 8 --quiet "
+                           "--method stf --cache " + out("cache");
+  double seconds[2];
+  for (int run = 0; run < 2; ++run) {
+    const std::string n = std::to_string(run);
+    Result r = stf(args + " -o " + out(n + ".h5") + " --json " + out(n + ".json"));
+    ASSERT_EQ(r.status, 0) << r.err;
+    std::ifstream json(out(n + ".json"));
+    std::string stats((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+    EXPECT_NE(stats.find("\"spheres\": 1"), std::string::npos) << stats;  // tau 4 in a tau-5 sphere
+    const std::size_t at = stats.find("\"precompute_seconds\": ");
+    ASSERT_NE(at, std::string::npos) << stats;
+    seconds[run] = std::stod(stats.substr(at + 22));
+  }
+  EXPECT_GT(seconds[0], 0.5);  // a 4e6-path table and a fit to the tolerance
+  EXPECT_LT(seconds[1], 0.1 * seconds[0]);
+  EXPECT_EQ(read_image(out("0.h5"), 16, 16).mean, read_image(out("1.h5"), 16, 16).mean);
+}
+
 TEST_F(Render, SameSeedSameImageForOneAndThreeThreads) {
   for (const std::string& method : std::vector<std::string>{"brute", "stf --pack " + pack().string()}) {
     const std::string common = kThick + "--spp 32 --seed 9 --quiet --method " + method;

@@ -1,0 +1,124 @@
+#!/usr/bin/python3
+"""What a piecewise-uniform exit point inside an alpha bin costs.
+
+A model holds one direction density per alpha bin and, within the bin, an exit point uniform
+in area (p(alpha) piecewise proportional to sin(alpha)). For each medium this measures that
+structure alone, with no fitting involved: a 90-bin table is pooled into 45 and 18 bins
+(summing groups of 2 and 5 bins) and spread back over the 90 bins by area, exactly as a
+perfectly fitted model of 45 or 18 bins would be, then compared (TV distance of the joint
+(alpha bin, cell) distribution of escapes) with an independent 90-bin reference table:
+  - `pooled_reference`: the reference pooled and spread back, against itself: the bias of the
+    structure (what even an infinitely long table would lose);
+  - `pooled_table`: the 1e7-path table pooled and spread back, against the reference; next to
+    `raw_table`, the 1e7-path table itself at 90 bins: whether pooling costs more than it
+    saves in noise;
+  - `interpolated_reference`: the pooled reference spread back by a density linear in
+    cos(alpha) between the pooled bins' centres instead of flat: what smoothing in alpha
+    would recover.
+
+Writes OUT/alpha_bins.json and prints a table. Usage:
+  bench/alpha_bins.py [--out DIR] [--paths 1e7] [--reference-paths 3e7] [--grid healpix:16]
+Needs build/stf and Debian's python3-h5py and python3-numpy.
+"""
+import argparse
+import json
+import os
+import sys
+
+import h5py
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+from stf_runs import Stf  # noqa: E402
+
+MEDIA = [{"sigma_s": 0.95, "sigma_a": 0.05, "g": 0.3}, {"sigma_s": 4.275, "sigma_a": 0.225, "g": 0.3},
+         {"sigma_s": 9.5, "sigma_a": 0.5, "g": 0.3}, {"sigma_s": 4.275, "sigma_a": 0.225, "g": 0.9}]
+BINS = 90
+
+
+def joint(path):
+    """Escapes per (alpha bin, cell) as probabilities less the uncollided delta (which models
+    hold exactly, apart), the delta's probability and cell, and the bins' areas."""
+    with h5py.File(path, "r") as f:
+        w = f["escape/weight"][()]
+        edges = f["escape/alpha_edges"][()]
+        pole = int(np.argmax(f["grid/direction"][()][:, 2]))
+        uncollided = float(f.attrs["uncollided_weight"])
+    w[0, pole] -= uncollided
+    total = w.sum() + uncollided
+    return w / total, (uncollided / total, pole), np.cos(edges[:-1]) - np.cos(edges[1:]), np.cos(edges)
+
+
+def pooled(p, delta, area, group):
+    """p pooled into groups of `group` bins, spread back over them in proportion to area; the
+    uncollided delta stays where it is."""
+    bins, cells = p.shape
+    sums = p.reshape(bins // group, group, cells).sum(axis=1)
+    a = area.reshape(bins // group, group)
+    share = (a / a.sum(axis=1, keepdims=True)).reshape(bins)
+    return with_delta(np.repeat(sums, group, axis=0) * share[:, None], delta)
+
+
+def interpolated(p, delta, area, edges_cos, group):
+    """p pooled as in pooled(), but spread back by the per-area density interpolated linearly
+    in cos(alpha) between the pooled bins' centres (held flat beyond the outer centres), then
+    renormalised: what a model smooth in alpha could reach."""
+    bins, cells = p.shape
+    sums = p.reshape(bins // group, group, cells).sum(axis=1)
+    coarse_area = area.reshape(bins // group, group).sum(axis=1)
+    density = sums / coarse_area[:, None]
+    coarse_edges = edges_cos[::group]
+    coarse_centres = 0.5 * (coarse_edges[:-1] + coarse_edges[1:])
+    fine_centres = 0.5 * (edges_cos[:-1] + edges_cos[1:])
+    # np.interp wants ascending abscissae; cos(alpha) descends with the bin index.
+    fine = np.stack([np.interp(fine_centres[::-1], coarse_centres[::-1], density[::-1, c])[::-1]
+                     for c in range(cells)], axis=1) * area[:, None]
+    fine *= sums.sum() / fine.sum()
+    return with_delta(np.clip(fine, 0, None), delta)
+
+
+def with_delta(p, delta):
+    q = p.copy()
+    q[0, delta[1]] += delta[0]
+    return q
+
+
+def tv(p, q):
+    return float(0.5 * np.abs(p - q).sum())
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--out", default=os.path.join(ROOT, "out", "alpha_bins"))
+    ap.add_argument("--paths", type=float, default=1e7)
+    ap.add_argument("--reference-paths", type=float, default=3e7)
+    ap.add_argument("--grid", default="healpix:16")
+    a = ap.parse_args()
+    os.makedirs(a.out, exist_ok=True)
+    stf = Stf()
+    rows = []
+    print("| tau | g | raw table (90 bins) | pooled table 45 / 18 | pooled reference 45 / 18 | "
+          "interpolated reference 45 / 18 |")
+    for i, m in enumerate(MEDIA):
+        table, ref = os.path.join(a.out, f"m{i}_table.h5"), os.path.join(a.out, f"m{i}_reference.h5")
+        stf.precompute(m, a.paths, 1, table, a.grid, BINS)
+        stf.precompute(m, a.reference_paths, 2, ref, a.grid, BINS)
+        p, dp, area, edges_cos = joint(table)
+        r, dr, _, _ = joint(ref)
+        full_r = with_delta(r, dr)
+        row = {"medium": m, "tau": m["sigma_s"] + m["sigma_a"], "raw_table": tv(with_delta(p, dp), full_r)}
+        for group, bins in ((2, 45), (5, 18)):
+            row[f"pooled_table_{bins}"] = tv(pooled(p, dp, area, group), full_r)
+            row[f"pooled_reference_{bins}"] = tv(pooled(r, dr, area, group), full_r)
+            row[f"interpolated_reference_{bins}"] = tv(interpolated(r, dr, area, edges_cos, group), full_r)
+        rows.append(row)
+        print(f"| {row['tau']:g} | {m['g']:g} | {row['raw_table']:.4f} | {row['pooled_table_45']:.4f} / "
+              f"{row['pooled_table_18']:.4f} | {row['pooled_reference_45']:.4f} / {row['pooled_reference_18']:.4f} | "
+              f"{row['interpolated_reference_45']:.4f} / {row['interpolated_reference_18']:.4f} |")
+    with open(os.path.join(a.out, "alpha_bins.json"), "w") as f:
+        json.dump({"paths": a.paths, "reference_paths": a.reference_paths, "grid": a.grid, "media": rows}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
