@@ -64,12 +64,13 @@ scene::Scene render_scene(const RenderOptions& o) {
 
 // Builds (or finds in the cache) the pack for the medium; returns its entries and the
 // seconds spent.
-std::vector<PackEntry> build_pack(const RenderOptions& o, double& seconds) {
+std::vector<PackEntry> build_pack(const RenderOptions& o, int threads, double& seconds) {
   const auto start = std::chrono::steady_clock::now();
   const scene::Scene sc = render_scene(o);
-  const scene::Plan plan = scene::make_plan(sc, cache_folder(o));
+  const std::string cache = cache_folder(o);
+  const scene::Plan plan = scene::make_plan(sc, cache);
   try {
-    scene::compute_entries(plan, int(parse_count(o.threads, "--threads", 0, 4096)),
+    scene::compute_entries(plan, threads,
                            [&](int i, int n, const scene::PlanEntry& e) {
                              if (!o.quiet)
                                std::fprintf(stderr, "stf render: precomputing [%d/%d] tau %g albedo %g g %g\n", i + 1,
@@ -80,7 +81,7 @@ std::vector<PackEntry> build_pack(const RenderOptions& o, double& seconds) {
     stop_if_interrupted();  // Ctrl-C: exit 130 (finished spheres stay in the cache)
     throw;
   }
-  const scene::Plan built = scene::make_plan(sc, cache_folder(o));
+  const scene::Plan built = scene::make_plan(sc, cache);  // now with the certified bounds
   for (const scene::PlanEntry* e : scene::unmet_entries(built))
     if (!o.quiet)
       std::fprintf(stderr, "stf render: warning: the tau %g sphere is certified only within TV %.3g, not %g\n", e->tau,
@@ -167,7 +168,7 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
   int spheres = 0;
   if (stf) {
     auto strides = std::make_unique<render::ShellStrides>(
-        o.medium, o.pack.empty() ? build_pack(o, precompute_seconds) : read_pack_option(o.pack));
+        o.medium, o.pack.empty() ? build_pack(o, s.threads, precompute_seconds) : read_pack_option(o.pack));
     spheres = strides->spheres();
     if (!o.pack.empty() && spheres == 0)  // most likely the pack of another medium
       fail("--pack: " + o.pack + " has no sphere of albedo " + shortest(o.medium.albedo()) + " and g " +

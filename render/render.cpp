@@ -59,9 +59,11 @@ Image render(const Medium& medium, const Method& method, const ImageSettings& s,
   auto stop = [&] { return cancel && cancel->load(std::memory_order_relaxed); };
   auto report = [&] {
     std::unique_lock<std::mutex> lock(mutex, std::try_to_lock);
-    if (!lock || seconds() < reported + 0.2) return;
-    reported = seconds();
-    progress(done.load() * s.spp, pixels * s.spp, reported);
+    if (!lock) return;
+    const double now = seconds();
+    if (now < reported + 0.2) return;
+    reported = now;
+    progress(done.load() * s.spp, pixels * s.spp, now);
   };
   auto worker = [&] {
     PathCounters counters;

@@ -4,6 +4,7 @@
 
 #include <stf/lookup.h>
 #include <stf/math.h>
+#include <stf/vmf.h>
 
 namespace stf::render {
 
@@ -13,14 +14,10 @@ const std::string kMediumName = "render";
 
 bool close(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(1.0, std::abs(b)); }
 
-// w' at polar cosine `c` (sine `s`) and azimuth 2 pi u about w, through an orthonormal frame
-// built without branches from w alone (Duff et al. 2017).
+// w' at polar cosine `c` (sine `s`) and azimuth 2 pi u about w.
 Vec3 turn(const Vec3& w, double c, double s, double u) {
-  const double sign = std::copysign(1.0, w.z);
-  const double a = -1 / (sign + w.z);
-  const double b = w.x * w.y * a;
-  const Vec3 t1{1 + sign * w.x * w.x * a, sign * b, -sign * w.x};
-  const Vec3 t2{b, sign + w.y * w.y * a, -w.y};
+  Vec3 t1, t2;
+  orthonormal_basis(w, t1, t2);
   double sp, cp;
   sincos_2pi(u, sp, cp);
   const double ct1 = s * cp, ct2 = s * sp;
@@ -68,7 +65,7 @@ std::vector<PackEntry> entries_for(const Medium& m, const std::vector<PackEntry>
 }
 
 ShellStrides::ShellStrides(const Medium& m, const std::vector<PackEntry>& pack)
-    : medium_(m), walk_(m), entries_(entries_for(m, pack)), spheres_(entries_, kMediumName) {}
+    : medium_(m), walk_(m), spheres_(entries_for(m, pack), kMediumName) {}
 
 double ShellStrides::radiance(const Vec3& entry, const Vec3& direction, PixelRng& rng, PathCounters& counters) const {
   const double sigma_t = medium_.sigma_t();

@@ -65,16 +65,13 @@ class BruteForce final : public Method {
 class ShellStrides final : public Method {
  public:
   ShellStrides(const Medium& m, const std::vector<PackEntry>& pack);
-  ShellStrides(const ShellStrides&) = delete;  // spheres_ points into entries_
-  ShellStrides& operator=(const ShellStrides&) = delete;
   double radiance(const Vec3& entry, const Vec3& direction, PixelRng& rng, PathCounters& counters) const override;
   int spheres() const { return spheres_.size(); }
 
  private:
   Medium medium_;
   CollisionWalk walk_;
-  std::vector<PackEntry> entries_;  // the medium's, all under one name
-  SphereLookup spheres_;            // over entries_
+  SphereLookup spheres_;  // the pack's spheres of this medium's albedo and g
 };
 
 // Entries of `pack` computed for this medium's albedo and g (relative difference below 1e-9).

@@ -16,17 +16,17 @@ const PackEntry* find_entry(const std::vector<PackEntry>& pack, const std::strin
 }
 
 SphereLookup::SphereLookup(const std::vector<PackEntry>& pack, const std::string& name) {
-  for (const PackEntry& e : pack)
-    if (e.name == name) entries_.push_back(&e);
+  for (std::size_t i = 0; i < pack.size(); ++i)
+    if (pack[i].name == name) pack_index_.push_back(i);
+  const auto tau = [&](std::size_t i) { return pack[i].model.tau; };
   // Of equal taus find_entry keeps the first in pack order: sort stably, keep the first of each.
-  std::stable_sort(entries_.begin(), entries_.end(),
-                   [](const PackEntry* a, const PackEntry* b) { return a->model.tau < b->model.tau; });
-  entries_.erase(std::unique(entries_.begin(), entries_.end(),
-                             [](const PackEntry* a, const PackEntry* b) { return a->model.tau == b->model.tau; }),
-                 entries_.end());
-  for (const PackEntry* e : entries_) {
-    taus_.push_back(e->model.tau);
-    samplers_.emplace_back(e->model);
+  std::stable_sort(pack_index_.begin(), pack_index_.end(), [&](std::size_t a, std::size_t b) { return tau(a) < tau(b); });
+  pack_index_.erase(std::unique(pack_index_.begin(), pack_index_.end(),
+                                [&](std::size_t a, std::size_t b) { return tau(a) == tau(b); }),
+                    pack_index_.end());
+  for (std::size_t i : pack_index_) {
+    taus_.push_back(tau(i));
+    samplers_.emplace_back(pack[i].model);
   }
 }
 

@@ -194,7 +194,10 @@ TEST_F(SceneTest, LookupPicksTheLargestSphereThatFits) {
       double r1 = -1, r2 = -1;
       const PackEntry* expected = find_entry(pack, name, 11, free, r1);
       const int i = lookup.find(11, free, r2);
-      EXPECT_EQ(i < 0 ? nullptr : &lookup.entry(i), expected) << name << " " << free;
+      EXPECT_EQ(i < 0 ? nullptr : &pack[lookup.pack_index(i)], expected) << name << " " << free;
+      if (i >= 0) {
+        EXPECT_EQ(lookup.sampler(i).model().tau, expected->model.tau);
+      }
       EXPECT_EQ(r1, r2);
     }
   }

@@ -18,21 +18,23 @@ const PackEntry* find_entry(const std::vector<PackEntry>& pack, const std::strin
                             double free_radius, double& radius);
 
 // find_entry for a renderer's inner loop, where it runs at every path vertex: the spheres of
-// one medium sorted by tau once, each with its sampler, so a lookup compares doubles only.
-// Gives the same entry as find_entry. The pack must outlive it; const and thread-safe.
+// one medium sorted by tau once, each with its own sampler (a copy of the model), so a lookup
+// compares doubles only. Finds the same entries as find_entry; needs nothing of the pack once
+// built. Const and thread-safe.
 class SphereLookup {
  public:
   SphereLookup(const std::vector<PackEntry>& pack, const std::string& name);
-  // Index of the largest sphere with tau <= sigma_t * free_radius (its radius tau / sigma_t
-  // written to `radius`), or -1 when none fits.
+  // The largest sphere with tau <= sigma_t * free_radius (its radius tau / sigma_t written to
+  // `radius`), or -1 when none fits.
   int find(double sigma_t, double free_radius, double& radius) const;
   int size() const { return int(taus_.size()); }
-  const PackEntry& entry(int i) const { return *entries_[std::size_t(i)]; }
   const ShellSampler& sampler(int i) const { return samplers_[std::size_t(i)]; }
+  // Where sphere i is in the pack the lookup was built from.
+  std::size_t pack_index(int i) const { return pack_index_[std::size_t(i)]; }
 
  private:
-  std::vector<double> taus_;  // ascending
-  std::vector<const PackEntry*> entries_;
+  std::vector<double> taus_;  // ascending; the samplers' taus, packed together for find()
+  std::vector<std::size_t> pack_index_;
   std::vector<ShellSampler> samplers_;
 };
 
