@@ -12,7 +12,7 @@
 
 #include <stf/math.h>
 
-#include "hg.h"
+#include "stf/hg.h"
 #include "pixel_rng.h"
 #include "render.h"
 

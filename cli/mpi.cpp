@@ -9,6 +9,8 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <map>
+#include <vector>
 #endif
 
 namespace stf::cli {
@@ -48,8 +50,35 @@ bool any_rank(bool flag) {
   return any != 0;
 }
 
+namespace {
+
+// The sparse once-scattered tallies of all ranks, added into rank 0's (whole numbers: exact in
+// any order).
+void sum_once_to_root(std::map<std::uint64_t, double>& once) {
+  std::vector<std::uint64_t> keys;
+  std::vector<double> values;
+  for (const auto& [k, v] : once) keys.push_back(k), values.push_back(v);
+  int mine = int(keys.size());
+  std::vector<int> counts(std::size_t(the_world.size)), offsets(std::size_t(the_world.size));
+  MPI_Gather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+  int total = 0;
+  for (int r = 0; r < the_world.size; ++r) offsets[std::size_t(r)] = total, total += counts[std::size_t(r)];
+  std::vector<std::uint64_t> all_keys(the_world.root() ? std::size_t(total) : 0);
+  std::vector<double> all_values(all_keys.size());
+  MPI_Gatherv(keys.data(), mine, MPI_UINT64_T, all_keys.data(), counts.data(), offsets.data(), MPI_UINT64_T, 0,
+              MPI_COMM_WORLD);
+  MPI_Gatherv(values.data(), mine, MPI_DOUBLE, all_values.data(), counts.data(), offsets.data(), MPI_DOUBLE, 0,
+              MPI_COMM_WORLD);
+  if (!the_world.root()) return;
+  once.clear();
+  for (std::size_t i = 0; i < all_keys.size(); ++i) once[all_keys[i]] += all_values[i];
+}
+
+}  // namespace
+
 void sum_to_root(Table& part) {
   if (the_world.size == 1) return;
+  sum_once_to_root(part.once);
   // Counts are whole numbers below 2^53 held in doubles: their sum is exact in any order.
   constexpr std::size_t kSlice = std::size_t(1) << 26;  // MPI counts are ints
   for (std::vector<double>& half : part.weight_half)

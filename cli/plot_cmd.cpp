@@ -104,13 +104,14 @@ void run_plot(const PlotOptions& o) {
       std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
       int bin = alpha_bin(t, alpha);
       StfModel model = fit::read_model(o.model);
-      int group = 1;
+      std::unique_ptr<fit::BinnedModel> binned;
       try {
-        group = fit::alpha_group_size(model.alpha_edges, t);
+        binned = std::make_unique<fit::BinnedModel>(model, t, *grid);
       } catch (const std::invalid_argument& e) {
         fail("--model: " + std::string(e.what()));
       }
-      std::vector<double> density = fit::model_cell_probabilities(model, bin / group, fit::QuadratureLevels(*grid));
+      std::vector<double> density =
+          binned->bin(bin, fit::model_cell_probabilities(model, bin / binned->group(), fit::QuadratureLevels(*grid))).second;
       for (std::int64_t c = 0; c < t.cells; ++c) density[c] /= t.solid_angle[c];
       h5::put_attr(file, "side_by_side", 1);
       write_panel(file, int(o.tables.size()), t, *grid, density,

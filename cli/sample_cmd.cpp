@@ -61,7 +61,8 @@ struct SampleOptions {
   std::string count = "1e4", seed = "1";
 };
 
-// `component` (which part drew each sample: 0 smooth, 1 uncollided) only for drawn samples.
+// `component` (which part drew each sample: 0 smooth, 1 uncollided, 2 once scattered) only for
+// drawn samples.
 void write_samples(AtomicOutput& out, const std::vector<double>& point, const std::vector<double>& direction,
                    const std::vector<double>& pdf, const std::vector<std::int8_t>& component, double escape) {
   {

@@ -103,14 +103,35 @@ std::vector<double> model_cell_probabilities(const StfModel& m, int b, const Qua
   return p;
 }
 
+BinnedModel::BinnedModel(const StfModel& model, const Table& reference, const DirectionGrid& grid)
+    : model_(model), reference_(reference), group_(alpha_group_size(model.alpha_edges, reference)) {
+  if (model.once_fraction > 0) once_ = bin_once_scattered(model.tau, model.g, reference.alpha_edges, grid);
+}
+
+std::pair<double, std::vector<double>> BinnedModel::bin(int b, const std::vector<double>& rest_cells) const {
+  const double once = model_.once_fraction;
+  const double rest = (1 - once) * model_.alpha_probability[b / group_] * area_share(reference_, b, group_);
+  std::vector<double> p(rest_cells.size());
+  for (std::size_t c = 0; c < p.size(); ++c) p[c] = rest * rest_cells[c];
+  double probability = rest;
+  if (once > 0) {
+    for (const auto& [c, share] : once_.cells[std::size_t(b)]) p[std::size_t(c)] += once * share;
+    probability += once * once_.bin_mass[std::size_t(b)];
+  }
+  if (probability > 0)
+    for (double& v : p) v /= probability;
+  return {probability, std::move(p)};
+}
+
 Evaluation evaluate(const StfModel& m, const Table& reference, const std::vector<double>& chi2_dof) {
-  const int f = alpha_group_size(m.alpha_edges, reference);
   std::unique_ptr<DirectionGrid> grid = make_grid(reference.grid);
+  const BinnedModel binned(m, reference, *grid);
+  const int f = binned.group();
   const QuadratureLevels levels(*grid);
-  std::vector<double> p;  // of the current model bin
+  std::vector<double> rest;  // of the current model bin
   Evaluation ev = evaluate_bins(reference, [&](int b) {
-    if (b % f == 0) p = model_cell_probabilities(m, b / f, levels);
-    return std::pair(m.alpha_probability[b / f] * area_share(reference, b, f), p);
+    if (b % f == 0) rest = model_cell_probabilities(m, b / f, levels);
+    return binned.bin(b, rest);
   });
   if (chi2_dof.size() == ev.per_alpha.size()) {
     // Over the bins that have a value (fitted bins; borrowed and empty ones have -1).

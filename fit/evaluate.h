@@ -7,6 +7,7 @@
 
 #include "stf/model.h"
 #include "grid.h"
+#include "once_scattered_cells.h"
 #include "vmf_fit.h"
 #include "table.h"
 
@@ -41,6 +42,26 @@ double area_share(const Table& reference, int b, int f);
 // cell of +z), integrated over the cells of the grid
 // whose quadratures `levels` holds (build them once for all bins).
 std::vector<double> model_cell_probabilities(const StfModel& model, int bin, const QuadratureLevels& levels);
+
+// A model's exit distribution in a reference table's layout, bin by reference bin, every part in
+// its exact cells: the rest (model bins spread over the reference bins they group by area, as a
+// sampler spreads alpha) and the once-scattered part binned exactly.
+class BinnedModel {
+ public:
+  // Throws std::invalid_argument when the model's alpha bins are not the reference's or groups
+  // of them.
+  BinnedModel(const StfModel& model, const Table& reference, const DirectionGrid& grid);
+  int group() const { return group_; }
+  // Reference bin b: its probability and its distribution over cells, from the rest's cell
+  // probabilities in model bin b / group() (model_cell_probabilities, computed once per group).
+  std::pair<double, std::vector<double>> bin(int b, const std::vector<double>& rest_cells) const;
+
+ private:
+  const StfModel& model_;
+  const Table& reference_;
+  int group_ = 1;
+  OnceScatteredCells once_;
+};
 
 // A model's alpha bins may be groups of the reference's (a tolerance fit's): each reference
 // bin is then compared with the model bin holding it. Throws std::invalid_argument when the

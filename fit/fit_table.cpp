@@ -13,6 +13,7 @@
 #include "grid.h"
 #include "parallel.h"
 #include "sh_fit.h"
+#include "stf/once_scattered.h"
 #include "stf/sh.h"
 #include "vmf_fit.h"
 
@@ -62,11 +63,30 @@ std::vector<double> bin_counts(const Table& t, int half, int b) {
   // lobe they became a kappa ~1e7 spike at a cell centre, degrees off +z.
   if (b == 0 && t.uncollided_half[0] >= 0)
     counts[make_grid(t.grid)->cell({0, 0, 1})] -= half < 0 ? t.uncollided_half[0] + t.uncollided_half[1] : t.uncollided_half[half];
+  // So are the once-scattered ones: their directions lie on a great circle, which a fitted
+  // density can only smear.
+  const std::uint64_t first = 2 * std::uint64_t(b) * std::uint64_t(t.cells);
+  for (auto it = t.once.lower_bound(first); it != t.once.end() && it->first < first + 2 * std::uint64_t(t.cells); ++it)
+    if (half < 0 || int(it->first & 1) == half) counts[(it->first - first) >> 1] -= it->second;
   return counts;
 }
 
 double uncollided_escapes(const Table& t) {
   return t.uncollided_half[0] >= 0 ? t.uncollided_half[0] + t.uncollided_half[1] : 0.0;
+}
+
+// Probabilities of the exact parts, per path launched. With the once-scattered escapes tallied
+// apart (tables since format 1 with /escape/once_half) both singular parts are known exactly:
+// e^{-tau} and the one-collision quadrature; the walk's counts of them are not needed, and only
+// the escapes after two or more collisions carry Monte Carlo noise. Older tables give the
+// tallied uncollided share and no once-scattered part.
+struct SingularParts {
+  double uncollided = 0, once = 0;
+};
+SingularParts singular_parts(const Table& t) {
+  if (!t.once_tallied || t.uncollided_half[0] < 0) return {uncollided_escapes(t) / double(t.paths), 0.0};
+  const double tau = t.medium.tau();
+  return {std::exp(-tau), t.max_scatter == 0 ? 0.0 : t.medium.albedo() * once_scattered_probability(tau, t.medium.g)};
 }
 
 double sum(const std::vector<double>& v) {
@@ -337,16 +357,20 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   m.sigma_s = t.medium.sigma_s, m.sigma_a = t.medium.sigma_a, m.g = t.medium.g;
   m.radius = t.medium.radius, m.tau = t.medium.tau(), m.albedo = t.medium.albedo();
   double paths = double(t.paths);
-  m.escape_probability = t.escaped_weight / paths;
   m.absorbed_fraction = t.absorbed_weight / paths;
   m.truncated_fraction = t.truncated_weight / paths;
   m.alpha_edges = t.alpha_edges;
   m.status = fits.status;
+  // The rest (all but the once-scattered part) per alpha bin, in paths: the fitted escapes and,
+  // in bin 0, the uncollided delta.
+  const SingularParts exact = singular_parts(t);
   std::vector<double> escapes(t.alpha_bins);
   for (int b = 0; b < t.alpha_bins; ++b) escapes[b] = sum(bin_counts(t, -1, b));
-  escapes[0] += uncollided_escapes(t);
+  escapes[0] += exact.uncollided * paths;
   double escaped = sum(escapes);
-  m.uncollided_fraction = escaped > 0 ? uncollided_escapes(t) / escaped : 0;
+  m.escape_probability = std::min(1.0, escaped / paths + exact.once);
+  m.once_fraction = m.escape_probability > 0 ? exact.once / m.escape_probability : 0;
+  m.uncollided_fraction = escaped > 0 ? exact.uncollided * paths / escaped : 0;
   m.alpha_probability = escaped > 0 ? escapes : uniform_alpha(t.alpha_edges);
   for (double& p : m.alpha_probability) p /= escaped > 0 ? escaped : 1;
   if (s.kind == ModelKind::kVmf) {

@@ -10,8 +10,9 @@
 namespace stf::fit {
 
 namespace {
-// Version 2 adds the uncollided fraction; version 1 still loads (as fraction 0).
-constexpr int kFormatVersion = 2;
+// Version 2 adds the uncollided fraction, version 3 the once-scattered fraction; versions 1 and
+// 2 still load (as fractions 0).
+constexpr int kFormatVersion = 3;
 }
 
 using namespace h5;
@@ -34,6 +35,7 @@ void write_model(const StfModel& m, const FitReport& r, const Provenance& p, con
     put_attr(file, "absorbed_fraction", m.absorbed_fraction);
     put_attr(file, "truncated_fraction", m.truncated_fraction);
     put_attr(file, "uncollided_fraction", m.uncollided_fraction);
+    put_attr(file, "once_fraction", m.once_fraction);
     put_attr(file, "fit_time_s", r.fit_time_s);
     put_attr(file, "model_bytes", m.packed_bytes());
     put_attr(file, "generator", std::string("stf " STF_VERSION));
@@ -138,6 +140,7 @@ StfModel read_model(const std::string& path) {
     m.absorbed_fraction = get_double(file, "absorbed_fraction");
     m.truncated_fraction = get_double(file, "truncated_fraction");
     if (version >= 2) m.uncollided_fraction = get_double(file, "uncollided_fraction");
+    if (version >= 3) m.once_fraction = get_double(file, "once_fraction");
     m.alpha_probability = get_dataset(file, "/alpha/probability", {});
     const hsize_t bins = m.alpha_probability.size();
     m.alpha_edges = get_dataset(file, "/alpha/edges", {bins + 1});

@@ -94,6 +94,8 @@ Table coarsen_table(const Table& t, int f, int levels) {
   c.solid_angle = k.parent_solid_angle;
   for (int h = 0; h < 2; ++h)
     c.weight_half[h] = group_sums(t.weight_half[h], k, std::size_t(c.alpha_bins) * k.cells);
+  c.once.clear();
+  for (const auto& [key, w] : t.once) c.once[2 * std::uint64_t(k.group[key >> 1]) + (key & 1)] += w;
   return c;
 }
 
@@ -125,8 +127,9 @@ Certificate certify(const StfModel& model, const Table& fit, const Table& h,
                     const FitSettings& settings) {
   if (fit.alpha_bins != h.alpha_bins || fit.grid != h.grid)
     throw std::invalid_argument("the held-out table's resolution differs from the fit table's");
-  const int bins = model.bins(), f = alpha_group_size(model.alpha_edges, h);
   std::unique_ptr<DirectionGrid> grid = make_grid(h.grid);
+  const BinnedModel binned(model, h, *grid);
+  const int bins = model.bins(), f = binned.group();
   const QuadratureLevels levels(*grid);
   const std::vector<double> x = h.weight(), fit_counts = fit.weight();
   double n = 0, n_fit = 0;
@@ -150,10 +153,10 @@ Certificate certify(const StfModel& model, const Table& fit, const Table& h,
   for (int j = 0; j < bins; ++j) {
     const std::vector<double>& q = cell_probability[j];
     for (int a = j * f; a < (j + 1) * f; ++a) {
-      const double bin_probability = model.alpha_probability[j] * area_share(h, a, f);
+      const auto [bin_probability, p] = binned.bin(a, q);
       for (std::int64_t c = 0; c < h.cells; ++c) {
         const std::size_t i = std::size_t(a) * h.cells + c;
-        const double count = x[i], y = count / n, m = bin_probability * q[c],
+        const double count = x[i], y = count / n, m = bin_probability * p[c],
                      w = std::max({m, t[i], floor});
         weight_sum += w;
         // E[(y - m)^2] = (p - m)^2 + p (1 - p) / n; count / n^2 and count (count - 1) /

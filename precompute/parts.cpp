@@ -76,6 +76,7 @@ void write_checkpoint(const std::string& path, const std::string& fingerprint, c
       put_dataset(root, "done", {hsize_t(done.size())}, done.data());
       const hsize_t bins = hsize_t(p.tally.alpha_bins), cells = hsize_t(p.tally.cells);
       put_rows(root, "counts", {2, bins, cells}, [&](hsize_t r) { return &p.tally.counts[r / bins][(r % bins) * cells]; });
+      put_sparse_halves(root, "once", p.tally.alpha_bins, p.tally.cells, p.tally.once);
     }
     if (std::rename(temp.c_str(), path.c_str()) != 0) throw std::runtime_error("cannot rename " + temp);
   } catch (const H5::Exception& e) {
@@ -106,6 +107,7 @@ Progress read_checkpoint(const std::string& path, const std::string& fingerprint
     const hsize_t bins = hsize_t(alpha_bins);
     get_rows(file, "/counts", {2, bins, hsize_t(cells)},
              [&](hsize_t r) { return &p.tally.counts[r / bins][(r % bins) * std::size_t(cells)]; });
+    p.tally.once = get_sparse_halves(file, "/once", alpha_bins, cells);
     return p;
   } catch (const H5::Exception& e) {
     throw std::runtime_error("cannot read checkpoint " + path + ": " + e.getDetailMsg());
@@ -145,6 +147,8 @@ void add_part(Table& whole, const Table& p) {
     for (std::size_t c = 0; c < whole.weight_half[h].size(); ++c) whole.weight_half[h][c] += p.weight_half[h][c];
   whole.paths += p.paths;
   for (int h = 0; h < 2; ++h) whole.uncollided_half[h] += p.uncollided_half[h];
+  for (const auto& [key, w] : p.once) whole.once[key] += w;
+  whole.once_tallied = whole.once_tallied && p.once_tallied;
   whole.escaped_weight += p.escaped_weight;
   whole.absorbed_weight += p.absorbed_weight;
   whole.truncated_weight += p.truncated_weight;

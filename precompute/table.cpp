@@ -16,6 +16,12 @@ std::vector<double> Table::weight() const {
   return sum;
 }
 
+double Table::once_weight() const {
+  double sum = 0;
+  for (const auto& [key, count] : once) sum += count;
+  return sum;
+}
+
 namespace {
 
 constexpr int kFormatVersion = 1;
@@ -23,6 +29,47 @@ constexpr int kFormatVersion = 1;
 }  // namespace
 
 using namespace h5;
+
+void put_sparse_halves(H5::Group& group, const char* name, int bins, std::int64_t cells,
+                       const std::map<std::uint64_t, double>& values) {
+  const hsize_t rows = 2 * hsize_t(bins), n = hsize_t(cells);
+  // Row r = half * bins + bin; key / 2 = bin * cells + cell.
+  std::vector<std::vector<std::pair<std::int64_t, double>>> by_row(rows);
+  for (const auto& [key, v] : values) {
+    const std::uint64_t i = key >> 1;
+    by_row[(key & 1) * hsize_t(bins) + i / n].emplace_back(std::int64_t(i % n), v);
+  }
+  std::vector<double> row(n, 0.0);
+  std::size_t last = 0;
+  put_rows(group, name, {2, hsize_t(bins), n}, [&](hsize_t r) {
+    for (const auto& [c, v] : by_row[last]) row[std::size_t(c)] = 0;
+    for (const auto& [c, v] : by_row[r]) row[std::size_t(c)] = v;
+    last = r;
+    return row.data();
+  });
+}
+
+std::map<std::uint64_t, double> get_sparse_halves(const H5::H5File& file, const char* path, int bins,
+                                                  std::int64_t cells) {
+  std::map<std::uint64_t, double> values;
+  std::vector<double> row(static_cast<std::size_t>(cells));
+  hsize_t current = 0;
+  auto keep_row = [&] {
+    const std::uint64_t half = current / hsize_t(bins), bin = current % hsize_t(bins);
+    for (std::int64_t c = 0; c < cells; ++c)
+      if (row[std::size_t(c)] != 0) values[2 * (bin * std::uint64_t(cells) + std::uint64_t(c)) + half] = row[std::size_t(c)];
+  };
+  // get_rows hands out one row at a time: keep the previous row's values before the next read.
+  bool any = false;
+  get_rows(file, path, {2, hsize_t(bins), hsize_t(cells)}, [&](hsize_t r) {
+    if (any) keep_row();
+    any = true;
+    current = r;
+    return row.data();
+  });
+  if (any) keep_row();
+  return values;
+}
 
 void write_table(const Table& t, const std::string& path) {
   try {
@@ -62,6 +109,10 @@ void write_table(const Table& t, const std::string& path) {
     });
     put_dataset(escape, "uncollided_half", {2}, t.uncollided_half.data());
     put_attr(file, "uncollided_weight", t.uncollided_half[0] + t.uncollided_half[1]);
+    if (t.once_tallied) {
+      put_sparse_halves(escape, "once_half", t.alpha_bins, t.cells, t.once);
+      put_attr(file, "once_weight", t.once_weight());
+    }
     put_rows(escape, "weight_half", {2, bins, cells},
              [&](hsize_t r) { return &t.weight_half[r / bins][(r % bins) * cells]; });
     put_dataset(escape, "alpha_edges", {bins + 1}, t.alpha_edges.data());
@@ -98,6 +149,11 @@ std::string table_error(const Table& t) {
   if (std::abs(escaped - t.escaped_weight) > 1e-9 * paths) return "/escape/weight does not sum to escaped_weight";
   for (double u : t.uncollided_half)
     if (!(u == -1 || (u >= 0 && u <= t.escaped_weight))) return "/escape/uncollided_half out of range";
+  for (const auto& [key, w] : t.once) {
+    const std::uint64_t i = key >> 1;
+    if (i >= std::uint64_t(t.alpha_bins) * std::uint64_t(t.cells) || !count(w) || w > t.weight_half[key & 1][i])
+      return "/escape/once_half holds a weight that is negative, not finite or above the cell's escaped weight";
+  }
   const auto& e = t.alpha_edges;
   if (e.front() != 0 || std::abs(e.back() - kPi) > 1e-12) return "/escape/alpha_edges must run from 0 to pi";
   for (std::size_t b = 0; b + 1 < e.size(); ++b)
@@ -156,6 +212,8 @@ Table read_table(const std::string& path) {
       std::vector<double> u = get_dataset(file, "/escape/uncollided_half", {2});
       t.uncollided_half = {u[0], u[1]};
     }
+    t.once_tallied = file.nameExists("/escape/once_half");
+    if (t.once_tallied) t.once = get_sparse_halves(file, "/escape/once_half", t.alpha_bins, t.cells);
     t.solid_angle = get_dataset(file, "/grid/solid_angle", {dims[1]});
     std::vector<double> dir = get_dataset(file, "/grid/direction", {dims[1], 3});
     t.direction.resize(dims[1]);

@@ -3,8 +3,14 @@
 
 #include <array>
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
+
+namespace H5 {
+class Group;
+class H5File;
+}  // namespace H5
 
 namespace stf {
 
@@ -35,6 +41,12 @@ struct Table {
   // Escapes without any collision (exit point alpha = 0, direction +z), per half; they are in
   // weight_half too. Tables written before stf recorded it read as -1 (unknown).
   std::array<double, 2> uncollided_half{0, 0};
+  // Escapes after exactly one collision, in weight_half too, keyed by 2 (bin cells + cell) +
+  // half (sparse: their directions lie in the plane y' = 0). Stored as /escape/once_half;
+  // tables written before stf tallied them have once_tallied false.
+  std::map<std::uint64_t, double> once;
+  bool once_tallied = true;
+  double once_weight() const;
   std::int64_t collisions = 0;  // scattering and absorption events over all paths
   // Which chunks of the run's deterministic chunk stream the table holds: [chunk_first,
   // chunk_last) of chunk_count, for a run of run_paths paths. A part (stf precompute --shard)
@@ -47,6 +59,13 @@ struct Table {
   // The full table: the sum of the two halves.
   std::vector<double> weight() const;
 };
+
+// A sparse [2, bins, cells] array (keys 2 (bin cells + cell) + half) as a dense dataset, row by
+// row, and back: what the table and a checkpoint store the once-scattered escapes as.
+void put_sparse_halves(H5::Group& group, const char* name, int bins, std::int64_t cells,
+                       const std::map<std::uint64_t, double>& values);
+std::map<std::uint64_t, double> get_sparse_halves(const H5::H5File& file, const char* path, int bins,
+                                                  std::int64_t cells);
 
 // Writes `table` to `path` (replacing it). Throws std::runtime_error on failure.
 void write_table(const Table& table, const std::string& path);

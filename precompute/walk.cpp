@@ -6,7 +6,7 @@
 
 #include "fastmath.h"
 #include "geometry.h"
-#include "hg.h"
+#include "stf/hg.h"
 #include "rng.h"
 
 namespace stf {
@@ -25,6 +25,7 @@ void ChunkTally::add_to(Tally& tally) const {
     tally.counts[escapes[i] & 1][escapes[i] >> 1] += 1;
   }
   for (int h = 0; h < 2; ++h) tally.uncollided[h] += uncollided[h];
+  for (std::uint64_t i : once) tally.once[i] += 1;
   tally.escaped += escaped;
   tally.absorbed += absorbed;
   tally.truncated += truncated;
@@ -33,6 +34,7 @@ void ChunkTally::add_to(Tally& tally) const {
 
 void ChunkTally::clear() {
   escapes.clear();
+  once.clear();
   uncollided[0] = uncollided[1] = 0;
   escaped = absorbed = truncated = collisions = 0;
 }
@@ -191,6 +193,7 @@ class EscapeBatch {
     dx_[n_] = L.from_wx[i], dy_[n_] = L.from_wy[i], dz_[n_] = L.from_wz[i];
     half_[n_] = int(L.path[i] & 1);
     mirror_[n_] = int((L.path[i] >> 1) & 1);
+    once_[n_] = L.collisions[i] == 1;
     if (L.collisions[i] == 0) ++tally_.uncollided[half_[n_]];
     if (++n_ == kSize) flush();
   }
@@ -215,8 +218,11 @@ class EscapeBatch {
     setup_.grid->cells(dx_, dy_, dz_, cell_, n_);
     const std::size_t cells = std::size_t(setup_.grid->cell_count());
     alpha_.bins(z_, bin_, n_);
-    for (int j = 0; j < n_; ++j)
-      tally_.escapes.push_back(2 * (std::uint64_t(bin_[j]) * cells + std::uint64_t(cell_[j])) + std::uint64_t(half_[j]));
+    for (int j = 0; j < n_; ++j) {
+      const std::uint64_t index = 2 * (std::uint64_t(bin_[j]) * cells + std::uint64_t(cell_[j])) + std::uint64_t(half_[j]);
+      tally_.escapes.push_back(index);
+      if (once_[j]) tally_.once.push_back(index);
+    }
     n_ = 0;
   }
 
@@ -227,7 +233,7 @@ class EscapeBatch {
   ChunkTally& tally_;
   int n_ = 0;
   double x_[kSize], y_[kSize], z_[kSize], dx_[kSize], dy_[kSize], dz_[kSize];
-  int half_[kSize], mirror_[kSize], bin_[kSize];
+  int half_[kSize], mirror_[kSize], once_[kSize], bin_[kSize];
   std::int64_t cell_[kSize];
 };
 

@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <map>
 #include <vector>
 
 #include "grid.h"
@@ -49,6 +50,10 @@ struct Tally {
   int alpha_bins = 0;
   std::vector<double> counts[2];  // per half: [alpha_bins * cells]
   std::uint64_t uncollided[2] = {0, 0};  // per half: escapes without a collision (in counts too)
+  // Escapes after exactly one collision (in counts too), by table index 2 (bin cells + cell) +
+  // half. Their directions lie in the plane y' = 0, so few cells hold any: a sparse map keeps
+  // a fine grid's table at one dense copy.
+  std::map<std::uint64_t, double> once;
   std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0;
 
   Tally(int alpha_bins, std::int64_t cells);
@@ -59,6 +64,7 @@ struct Tally {
 // costs one table, not one per thread.
 struct ChunkTally {
   std::vector<std::uint64_t> escapes;
+  std::vector<std::uint64_t> once;  // the escapes after exactly one collision, again
   std::uint64_t uncollided[2] = {0, 0};
   std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0;
 

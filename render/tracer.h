@@ -11,7 +11,7 @@
 #include <stf/pack.h>
 #include <stf/sampler.h>
 
-#include "hg.h"
+#include "stf/hg.h"
 #include "pixel_rng.h"
 #include "scene.h"
 

@@ -83,6 +83,7 @@ std::string model_error(const StfModel& m) {
     total += m.alpha_probability[b];
   }
   if (std::abs(total - 1) > 1e-6) return "alpha probabilities do not sum to 1";
+  if (!finite_in(m.once_fraction, 0, 1)) return "once-scattered fraction must be in [0, 1]";
   if (!finite_in(m.uncollided_fraction, 0, m.alpha_probability[0] * (1 + 1e-9)))
     return "uncollided fraction must be in [0, alpha probability of bin 0]";
   if (m.kind == ModelKind::kVmf) {

@@ -82,7 +82,7 @@ bool little_endian() {
 std::int64_t record_bytes(const StfModel& m, std::size_t name_bytes) {
   const int kind = m.kind == ModelKind::kVmf ? 0 : 1;
   const std::uint32_t size = kind == 0 ? std::uint32_t(m.lobes) : std::uint32_t(m.band_limit);
-  std::size_t n = 4 + 4 + pad4(name_bytes) + 6 * 4 + 7 * 8 + 4 * std::size_t(m.bins()) + pad4(std::size_t(m.bins()));
+  std::size_t n = 4 + 4 + pad4(name_bytes) + 6 * 4 + 8 * 8 + 4 * std::size_t(m.bins()) + pad4(std::size_t(m.bins()));
   return std::int64_t(n + 4 * parameter_count(kind, std::uint32_t(m.bins()), size, m.alpha_degree));
 }
 
@@ -101,7 +101,7 @@ std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries) {
     payload.put(std::int32_t(m.alpha_degree));
     payload.put(std::uint32_t(0));
     for (double v : {m.tau, m.albedo, m.g, m.escape_probability, m.absorbed_fraction, m.truncated_fraction,
-                     m.uncollided_fraction})
+                     m.uncollided_fraction, m.once_fraction})
       payload.put(v);
     for (double p : m.alpha_probability) payload.put(float(p));
     for (BinStatus s : m.status) payload.put(std::uint8_t(s));
@@ -134,10 +134,10 @@ bool finite(double v) { return std::isfinite(v); }
 
 // One model record; `r` is positioned at its start.
 bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& error) {
-  const std::size_t doubles = version >= 2 ? 7 : 6;
+  const std::size_t doubles = version >= 3 ? 8 : version >= 2 ? 7 : 6;
   const std::size_t start = r.at;
   const std::uint32_t record = r.get<std::uint32_t>(), name_bytes = r.get<std::uint32_t>();
-  if (!r.ok || record > r.size - start || name_bytes > record) return fail(error, "truncated model record");
+  if (!r.ok || record > r.size - start || record < 8 || name_bytes > record - 8) return fail(error, "truncated model record");
   e.name.assign(reinterpret_cast<const char*>(r.p + r.at), name_bytes);
   r.skip(pad4(name_bytes));
   const std::uint32_t kind = r.get<std::uint32_t>(), bins = r.get<std::uint32_t>();
@@ -160,6 +160,8 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
   m.tau = r.get<double>(), m.albedo = r.get<double>(), m.g = r.get<double>();
   m.escape_probability = r.get<double>(), m.absorbed_fraction = r.get<double>(), m.truncated_fraction = r.get<double>();
   if (version >= 2) m.uncollided_fraction = r.get<double>();
+  if (version >= 3) m.once_fraction = r.get<double>();
+  if (!(m.once_fraction >= 0 && m.once_fraction <= 1)) return fail(error, "once-scattered fraction out of range");
   if (!(m.tau > 0 && finite(m.tau) && m.albedo >= 0 && m.albedo <= 1 && m.g > -1 && m.g < 1 &&
         m.escape_probability >= 0 && m.escape_probability <= 1 && finite(m.absorbed_fraction) &&
         finite(m.truncated_fraction)))

@@ -17,6 +17,7 @@ Vec3 rotate_z(const Vec3& v, double c, double s) { return {c * v.x - s * v.y, s 
 ShellSampler::ShellSampler(StfModel model) : model_(std::move(model)) {
   const int bins = model_.bins();
   alpha_ = AliasTable(model_.alpha_probability);
+  if (model_.once_fraction > 0) once_ = OnceScattered(model_.tau, model_.g);
   for (double a : model_.alpha_edges) cos_edges_.push_back(std::cos(a));
   cos_edges_.front() = 1, cos_edges_.back() = -1;
   for (const VmfLobe& l : model_.vmf) {
@@ -99,14 +100,22 @@ Vec3 ShellSampler::sample_direction(int bin, double u2, double u3) const {
 }
 
 ExitSample ShellSampler::draw(double u0, double u1, double u2, double u3, int& bin, Vec3& local) const {
-  double remainder;
-  bin = sample_alpha_bin(u0, remainder);
   ExitSample s;
+  const double once = model_.once_fraction;
+  if (u0 < once) {
+    once_.sample(u0 / once, u1, u2, u3, s.point, s.direction);
+    s.pdf = once;
+    s.component = kOnceScattered;
+    bin = -1;
+    return s;
+  }
+  double remainder;
+  bin = sample_alpha_bin(once > 0 ? std::min((u0 - once) / (1 - once), std::nextafter(1.0, 0.0)) : u0, remainder);
   if (bin == 0) {  // the uncollided delta is part of bin 0
     const double share = model_.uncollided_share_of_bin0();
     if (remainder < share) {
       s.point = s.direction = {0, 0, 1};
-      s.pdf = model_.uncollided_fraction;
+      s.pdf = model_.uncollided_probability();
       s.component = kUncollided;
       bin = -1;
       return s;
@@ -128,7 +137,7 @@ ExitSample ShellSampler::sample(double u0, double u1, double u2, double u3) cons
   Vec3 local;
   ExitSample s = draw(u0, u1, u2, u3, bin, local);
   if (bin >= 0)
-    s.pdf = smooth_probability(bin) / (2 * kPi * (cos_edges_[bin] - cos_edges_[bin + 1])) * direction_pdf(bin, local);
+    s.pdf = model_.smooth_probability(bin) / (2 * kPi * (cos_edges_[bin] - cos_edges_[bin + 1])) * direction_pdf(bin, local);
   return s;
 }
 
@@ -138,7 +147,7 @@ double ShellSampler::pdf(const Vec3& point, const Vec3& direction) const {
   double rho = std::sqrt(point.x * point.x + point.y * point.y);
   double cb = rho > 0 ? point.x / rho : 1, sb = rho > 0 ? point.y / rho : 0;
   Vec3 local = rotate_z(direction, cb, -sb);
-  return smooth_probability(bin) / (2 * kPi * (c0 - c1)) * direction_pdf(bin, local);
+  return model_.smooth_probability(bin) / (2 * kPi * (c0 - c1)) * direction_pdf(bin, local);
 }
 
 namespace {

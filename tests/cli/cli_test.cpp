@@ -216,19 +216,30 @@ TEST_F(Cli, PackSampleAndEvalFollowTheContract) {
     std::vector<double> drawn = stf::h5::get_dataset(f, "/samples/pdf", {}), evaluated = stf::h5::get_dataset(g, "/samples/pdf", {});
     std::vector<std::int32_t> component = stf::h5::get_int_dataset(f, "/samples/component", {500});
     // The smooth part's samples: equal but for rounding of the stored directions (relative
-    // 1e-6). The uncollided ones carry their discrete probability, which --eval (a density)
-    // does not give.
-    int uncollided = 0;
+    // 1e-6). The singular ones carry their discrete probability, which --eval (a density) does
+    // not give: the uncollided delta e^{-tau} of the escapes, exactly; the once-scattered part
+    // leaves in the plane of +z and its exit point.
+    std::vector<double> point = stf::h5::get_dataset(f, "/samples/exit_point", {}),
+                        direction = stf::h5::get_dataset(f, "/samples/exit_direction", {});
+    int uncollided = 0, once = 0;
     for (std::size_t i = 0; i < drawn.size(); ++i) {
       if (component[i] == 1) {
         ++uncollided;
-        EXPECT_NEAR(drawn[i], std::exp(-3.3) / stf::h5::get_double(f, "escape_probability"), 0.3 * drawn[i]);
+        EXPECT_NEAR(drawn[i], std::exp(-3.3) / stf::h5::get_double(f, "escape_probability"), 1e-6 * drawn[i]);
+        continue;
+      }
+      if (component[i] == 2) {
+        ++once;
+        const double* y = &point[3 * i];
+        const double* w = &direction[3 * i];
+        EXPECT_NEAR(y[1] * w[0] - y[0] * w[1], 0, 1e-6) << "off the plane of +z and the exit point";
         continue;
       }
       EXPECT_EQ(component[i], 0);
       EXPECT_NEAR(evaluated[i], drawn[i], 1e-6 * drawn[i]);
     }
     EXPECT_GT(uncollided, 0);
+    EXPECT_GT(once, 0);
   }
   Result bad = stf("sample " + out("t.h5") + " --count 10 -o " + out("x.h5"));
   EXPECT_NE(bad.status, 0);

@@ -100,13 +100,17 @@ TEST(FitTable, UncollidedEscapesAreAnExactDeltaNotALobe) {
   ASSERT_GT(uncollided, 0.3 * t.escaped_weight);
   for (const char* spec : {"vmf:4", "sh:8"}) {
     StfModel m = fit_table(t, parse_model_spec(spec));
-    EXPECT_DOUBLE_EQ(m.uncollided_fraction, uncollided / t.escaped_weight) << spec;
+    // Its probability is exact, e^{-tau} per path; the table's count agrees within its noise.
+    EXPECT_NEAR(m.uncollided_probability() * m.escape_probability, std::exp(-t.medium.tau()), 1e-12) << spec;
+    const double paths = double(t.paths), p0 = std::exp(-t.medium.tau());
+    EXPECT_NEAR(uncollided, paths * p0, 5 * std::sqrt(paths * p0 * (1 - p0))) << spec;
     if (m.kind == ModelKind::kVmf) {
       for (int k = 0; k < m.lobes; ++k) EXPECT_LT(m.vmf[k].kappa, 1e5) << "bin 0 lobe " << k;
     }
     std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
     QuadratureLevels levels(*grid);
-    std::vector<double> p = model_cell_probabilities(m, 0, levels);
+    const BinnedModel binned(m, t, *grid);
+    std::vector<double> p = binned.bin(0, model_cell_probabilities(m, 0, levels)).second;
     const std::int64_t pole = grid->cell({0, 0, 1});
     double bin0 = 0;
     for (std::int64_t c = 0; c < t.cells; ++c) bin0 += t.weight_half[0][c] + t.weight_half[1][c];

@@ -1,4 +1,4 @@
-#include "hg.h"
+#include "stf/hg.h"
 
 #include <gtest/gtest.h>
 

@@ -6,7 +6,7 @@
 
 #include "chi2.h"
 #include "grid.h"
-#include "hg.h"
+#include "stf/hg.h"
 #include "precompute.h"
 #include "seed.h"
 #include "walk.h"

@@ -93,7 +93,7 @@ TEST(Pack, RejectsForeignTruncatedAndCorruptedFiles) {
     EXPECT_FALSE(error.empty());
   }
   std::vector<std::uint8_t> bad = good;
-  bad[8] = 3;  // a version after this one
+  bad[8] = std::uint8_t(kPackVersion + 1);  // a version after this one
   EXPECT_FALSE(read_pack(bad.data(), bad.size(), out, error));
   EXPECT_NE(error.find("version"), std::string::npos);
   bad = good;

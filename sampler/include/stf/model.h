@@ -30,7 +30,12 @@ struct StfModel {
   // The medium (of the source table) and its dimensionless numbers.
   double sigma_s = 0, sigma_a = 0, g = 0, radius = 1, tau = 0, albedo = 0;
   double escape_probability = 0, absorbed_fraction = 0, truncated_fraction = 0;
-  // Share of the escapes that left without any collision: exactly at alpha = 0 heading +z (a
+  // Share of the escapes that collided exactly once (format version 3): drawn exactly from the
+  // medium's tau and g (stf/once_scattered.h), never fitted. Everything below describes the
+  // other escapes, the "rest", as shares of them: the whole exit distribution is
+  //   once_fraction * (once scattered) + (1 - once_fraction) * (rest).
+  double once_fraction = 0;
+  // Share of the rest that left without any collision: exactly at alpha = 0 heading +z (a
   // delta, not part of any fitted density). It is included in alpha_probability[0]; the
   // direction model of bin 0 describes the rest of that bin.
   double uncollided_fraction = 0;
@@ -57,6 +62,11 @@ struct StfModel {
   std::vector<double> sh_chebyshev;
 
   int bins() const { return int(alpha_probability.size()); }
+  // Shares of all escapes: the uncollided delta, and the smooth (fitted) part in alpha bin b.
+  double uncollided_probability() const { return (1 - once_fraction) * uncollided_fraction; }
+  double smooth_probability(int b) const {
+    return (1 - once_fraction) * (alpha_probability[b] - (b == 0 ? uncollided_fraction : 0.0));
+  }
   // Of alpha bin 0's escapes, the share that is the uncollided delta.
   double uncollided_share_of_bin0() const {
     return alpha_probability.empty() || alpha_probability[0] <= 0 ? 0 : std::min(1.0, uncollided_fraction / alpha_probability[0]);

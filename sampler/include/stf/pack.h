@@ -8,6 +8,7 @@
 //     u32 kind (0 vmf, 1 sh), u32 bins, u32 lobes or band limit, u32 SH table nz,
 //     i32 alpha degree (-1: none), u32 reserved,
 //     f64 tau, albedo, g, escape probability, absorbed fraction, truncated fraction,
+//         uncollided fraction (version >= 2), once-scattered fraction (version >= 3),
 //     f32 alpha probability [bins], u8 bin status [bins] padded to 4 bytes,
 //     vmf: f32 [bins * lobes * 5] (weight, kappa, mean x, y, z)
 //     sh:  f32 [bins * (L+1)^2], or with alpha degree D >= 0 f32 [(D+1) * (L+1)^2]
@@ -23,8 +24,9 @@
 
 namespace stf {
 
-// Version 2 adds each model's uncollided fraction; version-1 packs still load (fraction 0).
-inline constexpr std::uint32_t kPackVersion = 2;
+// Version 2 adds each model's uncollided fraction, version 3 its once-scattered fraction (after
+// the uncollided one); packs of versions 1 and 2 still load (fractions 0).
+inline constexpr std::uint32_t kPackVersion = 3;
 
 struct PackEntry {
   std::string name;  // e.g. the medium's name in a scene; may be empty

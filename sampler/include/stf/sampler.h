@@ -13,18 +13,20 @@
 
 #include "stf/alias.h"
 #include "stf/model.h"
+#include "stf/once_scattered.h"
 #include "stf/vec3.h"
 
 namespace stf {
 
 // Which part of the exit distribution drew a sample.
-enum Component : int { kSmooth = 0, kUncollided = 1 };
+enum Component : int { kSmooth = 0, kUncollided = 1, kOnceScattered = 2 };
 
 struct ExitSample {
   Vec3 point;      // on the unit sphere (local frame)
   Vec3 direction;  // unit exit direction (local frame)
   // kSmooth: density per unit area of the unit sphere per steradian (of the smooth part, times
   // its probability). kUncollided: the delta's discrete probability (point and direction +z).
+  // kOnceScattered: that part's probability (it has no density on the (4 pi)^2 domain).
   double pdf = 0;
   int component = kSmooth;
 };
@@ -33,7 +35,7 @@ struct WorldExit {
   Vec3 point;      // world exit point, at distance `radius` from the start
   Vec3 direction;  // world exit direction
   double pdf = 0;  // per unit area of the sphere of that radius per steradian (or, for the
-                   // uncollided delta, its discrete probability)
+                   // singular parts, their probabilities)
   int component = kSmooth;
 };
 
@@ -42,12 +44,13 @@ class ShellSampler {
   // The model must be valid (as read_pack or fit/ produce it).
   explicit ShellSampler(StfModel model);
 
-  // (u0, u1, u2, u3) in [0, 1)^4: u0 picks the alpha bin (its remainder decides the uncollided
-  // delta in bin 0 and places alpha in the bin), u1 the azimuth beta, u2 the lobe or SH cell
-  // (remainder reused), u3 the rest.
+  // (u0, u1, u2, u3) in [0, 1)^4: u0 picks the part (once scattered or the rest) and then the
+  // alpha bin (its remainder decides the uncollided delta in bin 0 and places alpha in the bin),
+  // u1 the azimuth beta, u2 the lobe or SH cell (remainder reused), u3 the rest. The
+  // once-scattered part uses them as OnceScattered::sample does.
   ExitSample sample(double u0, double u1, double u2, double u3) const;
   // The density of the smooth part (times its probability) that sample() draws from; 0 where
-  // the model has no support. The uncollided delta has no density.
+  // the model has no support. The singular parts have no density.
   double pdf(const Vec3& point, const Vec3& direction) const;
   // Probability that a path starting at the centre leaves the sphere at all.
   double escape_probability() const { return model_.escape_probability; }
@@ -79,10 +82,6 @@ class ShellSampler {
     double expm1_2k;    // expm1(-2 kappa)
   };
   double lobe_pdf(const Lobe& l, const Vec3& w) const;
-  // Probability of the smooth part in an alpha bin (bin 0 less the uncollided delta).
-  double smooth_probability(int bin) const {
-    return model_.alpha_probability[bin] - (bin == 0 ? model_.uncollided_fraction : 0.0);
-  }
   int alpha_bin_of(double cos_alpha) const;
   // sample() less the pdf; `bin` is where the smooth part was drawn (-1: the delta).
   ExitSample draw(double u0, double u1, double u2, double u3, int& bin, Vec3& local) const;
@@ -94,6 +93,7 @@ class ShellSampler {
   std::vector<Lobe> lobes_;        // vmf: [bins * lobes]
   std::vector<double> lobe_cdf_;   // vmf: [bins * lobes], running sums of each bin's weights
   std::vector<AliasTable> cells_;  // sh: per bin, over its equal-area cells
+  OnceScattered once_;             // when the model has a once-scattered part
 };
 
 }  // namespace stf
