@@ -39,11 +39,13 @@ class RetryStream {
 }  // namespace
 
 std::vector<double> OnceScattered::s_edges() {
-  // Quadratic spacing: the first cell is 1 / 4096 of the radius, fine enough for the e^{-2 tau s}
-  // of backward scattering up to tau ~ 1000; near the surface the forward paths, whose length
-  // is 1 for any s, need no fine cells.
+  // Cells crowd quadratically at both ends (Chebyshev spacing; the end cells are 6e-4 wide):
+  // near the centre for the e^{-2 tau s} of backward scattering up to tau ~ 1000, near the
+  // surface for the paths that leave sideways, whose length s + sqrt(1 - s^2) has a square root
+  // at s = 1.
   std::vector<double> e(kSCells + 1);
-  for (int i = 0; i <= kSCells; ++i) e[i] = double(i) * i / (double(kSCells) * kSCells);
+  for (int i = 0; i <= kSCells; ++i) e[i] = 0.5 * (1 - std::cos(kPi * i / kSCells));
+  e.front() = 0, e.back() = 1;
   return e;
 }
 

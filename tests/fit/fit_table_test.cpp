@@ -13,6 +13,7 @@
 #include "model_io.h"
 #include "precompute.h"
 #include "rng.h"
+#include "stf/once_scattered.h"
 
 namespace stf::fit {
 namespace {
@@ -136,6 +137,61 @@ TEST(FitTable, AutoPicksTheFamilyWithTheLowerHeldOutError) {
   }
 }
 
+// The once-scattered escapes are an exact part too: their probability is the one-collision
+// quadrature's (the table's count agrees within its noise), and the fit sees only the escapes
+// after two or more collisions. Limits: albedo 0 and --max-scatter 0 leave no such part, a
+// vanishing tau leaves only the uncollided delta.
+TEST(FitTable, OnceScatteredEscapesAreAnExactPartNotFitted) {
+  const Medium medium{0.9, 0.1, 0.3, 1};
+  Table t = make_table(medium, 100000, "healpix:4", 18);
+  const double paths = double(t.paths), once = medium.albedo() * once_scattered_probability(medium.tau(), medium.g);
+  ASSERT_GT(t.once_weight(), 0.2 * t.escaped_weight);
+  EXPECT_NEAR(t.once_weight(), paths * once, 5 * std::sqrt(paths * once * (1 - once)));
+  FitReport r;
+  StfModel m = fit_table(t, parse_model_spec("vmf:3"), &r);
+  EXPECT_NEAR(m.once_fraction * m.escape_probability, once, 1e-12);
+  const double collided_twice = t.escaped_weight - t.uncollided_half[0] - t.uncollided_half[1] - t.once_weight();
+  EXPECT_NEAR(m.escape_probability, std::exp(-medium.tau()) + once + collided_twice / paths, 1e-12);
+  double fitted = 0;
+  for (const BinDiagnostics& d : r.bins) fitted += d.escapes;
+  EXPECT_EQ(fitted, collided_twice);
+
+  struct Limit {
+    Medium medium;
+    std::int64_t max_scatter;
+    const char* what;
+  };
+  for (Limit c : {Limit{{0, 2, 0.3, 1}, -1, "albedo 0"}, Limit{{1.5, 0.5, 0.3, 1}, 0, "max_scatter 0"},
+                  Limit{{1e-6, 0, 0.3, 1}, -1, "tau 1e-6"}}) {
+    Table l = make_table(c.medium, 20000, "healpix:4", 18, 1, c.max_scatter);
+    EXPECT_EQ(l.once_weight(), 0) << c.what;
+    StfModel lm = fit_table(l, parse_model_spec("vmf:2"));
+    EXPECT_LT(lm.once_fraction, 2e-6) << c.what;
+    EXPECT_NEAR(lm.uncollided_probability() * lm.escape_probability, std::exp(-c.medium.tau()), 1e-12) << c.what;
+    if (c.medium.tau() < 1e-3) EXPECT_GT(lm.uncollided_probability(), 1 - 2e-6) << c.what;
+  }
+}
+
+// Tables written before the once-scattered escapes were tallied apart still fit, as before:
+// with no once-scattered part and the tallied uncollided share.
+TEST(FitTable, TablesWithoutTheOnceScatteredTallyStillFit) {
+  Table t = make_table({0.9, 0.1, 0.3, 1}, 20000);
+  const std::string path = ::testing::TempDir() + "/stf_old_table_" + std::to_string(::getpid()) + ".h5";
+  write_table(t, path);
+  {
+    H5::H5File f(path, H5F_ACC_RDWR);
+    f.unlink("/escape/once_half");
+  }
+  Table old = read_table(path);
+  std::remove(path.c_str());
+  EXPECT_FALSE(old.once_tallied);
+  EXPECT_TRUE(old.once.empty());
+  StfModel m = fit_table(old, parse_model_spec("vmf:2"));
+  EXPECT_EQ(m.once_fraction, 0);
+  EXPECT_DOUBLE_EQ(m.escape_probability, old.escaped_weight / double(old.paths));
+  EXPECT_DOUBLE_EQ(m.uncollided_fraction, (old.uncollided_half[0] + old.uncollided_half[1]) / old.escaped_weight);
+}
+
 TEST(FitTable, VersionOneModelsStillLoad) {
   Table t = make_table({2, 0.2, 0.5, 1}, 20000);
   FitReport report;
@@ -147,6 +203,7 @@ TEST(FitTable, VersionOneModelsStillLoad) {
   {
     H5::H5File f(path, H5F_ACC_RDWR);
     f.removeAttr("uncollided_fraction");
+    f.removeAttr("once_fraction");
     f.removeAttr("format_version");
     int one = 1;
     f.createAttribute("format_version", H5::PredType::NATIVE_INT, H5::DataSpace()).write(H5::PredType::NATIVE_INT, &one);
@@ -154,6 +211,7 @@ TEST(FitTable, VersionOneModelsStillLoad) {
   StfModel v1 = read_model(path);
   std::remove(path.c_str());
   EXPECT_EQ(v1.uncollided_fraction, 0);
+  EXPECT_EQ(v1.once_fraction, 0);
   EXPECT_EQ(v1.vmf.size(), m.vmf.size());
 }
 

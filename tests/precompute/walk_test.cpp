@@ -7,6 +7,7 @@
 #include "chi2.h"
 #include "grid.h"
 #include "stf/hg.h"
+#include "stf/once_scattered.h"
 #include "precompute.h"
 #include "seed.h"
 #include "walk.h"
@@ -237,6 +238,36 @@ TEST(Walk, OneCollisionMatchesExactQuadrature) {
     EXPECT_GT(r.p_value, test::kChi2Alpha) << "g = " << c.g << ": " << r.describe();
     expect_binomial(t.absorbed_weight, double(s.paths), e.absorbed, "absorbed");
     expect_binomial(t.truncated_weight, double(s.paths), e.truncated, "truncated");
+  }
+}
+
+// The once-scattered escapes, tallied apart per (half, alpha bin, cell) while the walk goes on
+// past them, against the one-collision quadrature: one multinomial over their alpha bins and
+// everything else. They are part of the table's weight, cell by cell.
+TEST(Walk, OnceScatteredEscapesAreTalliedApart) {
+  const int bins = 18;
+  PrecomputeSettings s;
+  s.paths = 1'000'000;
+  s.alpha_bins = bins;
+  s.grid = "healpix:2";
+  s.seed = test::test_seed(36);
+  SCOPED_TRACE(test::seed_trace(std::uint64_t(s.seed)));
+  for (Medium m : {Medium{1.2, 0.3, 0.3, 1}, Medium{0.2, 0.1, -0.7, 1}, Medium{3, 0, 0.9, 1}}) {
+    Table t = run(m, s);
+    OneCollisionExact e = one_collision_exact(m.tau(), m.albedo(), m.g, bins);
+    e.escaped_per_bin[0] -= std::exp(-m.tau());
+    std::vector<double> observed(bins + 1, 0.0), expected(bins + 1, 0.0);
+    for (const auto& [key, w] : t.once) {
+      ASSERT_LE(w, t.weight_half[key & 1][key >> 1]);
+      observed[std::size_t((key >> 1) / std::uint64_t(t.cells))] += w;
+    }
+    observed[bins] = double(s.paths) - t.once_weight();
+    for (int b = 0; b < bins; ++b) expected[b] = e.escaped_per_bin[b] * double(s.paths);
+    expected[bins] = double(s.paths) * (1 - std::accumulate(e.escaped_per_bin.begin(), e.escaped_per_bin.end(), 0.0));
+    test::Chi2Result r = test::chi2_test(observed, expected);
+    EXPECT_GT(r.p_value, test::kChi2Alpha) << "g = " << m.g << ": " << r.describe();
+    // The sampler library's probability of the part, from its own quadrature.
+    expect_binomial(t.once_weight(), double(s.paths), m.albedo() * once_scattered_probability(m.tau(), m.g), "once");
   }
 }
 

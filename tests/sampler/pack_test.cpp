@@ -32,6 +32,8 @@ std::vector<PackEntry> round_trip(const std::vector<PackEntry>& in) {
 
 TEST(Pack, RoundTripKeepsModelsToFloatPrecision) {
   std::vector<PackEntry> in = {{"milk", test::make_vmf_model()}, {"", test::make_sh_model()}};
+  in[0].model.once_fraction = 0.25;
+  in[0].model.uncollided_fraction = 0.1 * in[0].model.alpha_probability[0];
   std::vector<PackEntry> out = round_trip(in);
   ASSERT_EQ(out.size(), 2u);
   EXPECT_EQ(out[0].name, "milk");
@@ -41,6 +43,8 @@ TEST(Pack, RoundTripKeepsModelsToFloatPrecision) {
   for (std::size_t e = 0; e < in.size(); ++e) {
     EXPECT_EQ(out[e].model.tau, in[e].model.tau);
     EXPECT_EQ(out[e].model.escape_probability, in[e].model.escape_probability);
+    EXPECT_EQ(out[e].model.once_fraction, in[e].model.once_fraction);
+    EXPECT_EQ(out[e].model.uncollided_fraction, in[e].model.uncollided_fraction);
     for (int b = 0; b < in[e].model.bins(); ++b)
       for (int i = 0; i < 200; ++i) {
         Vec3 w = random_direction(s);

@@ -48,7 +48,7 @@ class OnceScattered {
   double acceptance(double g) const;
 
   // The (s, u) grid: s edges crowd towards the centre, where paths scattered backwards in a
-  // thick sphere collide; u edges are uniform (HG's own measure).
+  // thick sphere collide, and towards the surface; u edges are uniform (HG's own measure).
   static std::vector<double> s_edges();
   static std::vector<double> u_edges();
   // HG's quantile function: mu(u).
