@@ -84,10 +84,8 @@ namespace {
 std::vector<double> smooth_cell_probabilities(const StfModel& m, int b, const QuadratureLevels& levels) {
   if (m.kind == ModelKind::kVmf) {
     std::vector<VmfLobe> lobes(m.vmf.begin() + std::ptrdiff_t(b) * m.lobes, m.vmf.begin() + std::ptrdiff_t(b + 1) * m.lobes);
-    double kappa = 0;
-    for (const VmfLobe& l : lobes) kappa = std::max(kappa, l.kappa);
-    // The same quadrature rule the fitter used for lobes this narrow.
-    return vmf_cell_probabilities(lobes, levels.for_kappa(kappa));
+    // The same quadrature rules the fitter used for lobes this narrow.
+    return vmf_cell_probabilities(lobes, levels);
   }
   return density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, w); }, levels.at(2));
 }

@@ -47,7 +47,7 @@ FitSettings parse_model_spec(const std::string& spec) {
 }
 
 std::vector<int> auto_candidates(ModelKind kind) {
-  return kind == ModelKind::kVmf ? std::vector<int>{1, 2, 3, 4, 6, 8} : std::vector<int>{2, 4, 6, 8, 12, 16};
+  return kind == ModelKind::kVmf ? std::vector<int>{1, 2, 3, 4, 6, 8, 12} : std::vector<int>{2, 4, 6, 8, 12, 16};
 }
 
 namespace {
@@ -124,8 +124,10 @@ struct BinFits {
   std::vector<std::vector<double>> sh;      // sh: raw projections, not yet smoothed
 };
 
+// `start`: fits (on a half-table, of this size or smaller) to start the lobes from, or null;
+// missing lobes come from splitting the heaviest ones (grow_lobes).
 BinFits fit_bins(const Table& t, int half, ModelKind kind, int size, const QuadratureLevels& levels,
-                 const ShProjector* projector, const FitSettings& s) {
+                 const ShProjector* projector, const FitSettings& s, const BinFits* start = nullptr) {
   BinFits fits;
   fits.table = &t;
   fits.status.assign(t.alpha_bins, BinStatus::kBorrowed);
@@ -142,7 +144,9 @@ BinFits fit_bins(const Table& t, int half, ModelKind kind, int size, const Quadr
     }
     // No more lobes than the bin's escapes can support (about 50 per lobe).
     int lobes = std::clamp(int(n / 50), 1, size);
-    fits.lobes[b] = fit_vmf(counts, levels, lobes).lobes;
+    const bool warm = start && start->status[b] == BinStatus::kFitted;
+    fits.lobes[b] = warm ? fit_vmf_from(counts, levels, grow_lobes(start->lobes[b], lobes)).lobes
+                         : fit_vmf(counts, levels, lobes).lobes;
     fits.lobes[b].resize(size, VmfLobe{0, 0, {0, 0, 1}});
   });
   std::vector<VmfLobe> uniform(size, VmfLobe{0, 0, {0, 0, 1}});
@@ -158,11 +162,9 @@ BinFits fit_bins(const Table& t, int half, ModelKind kind, int size, const Quadr
 std::vector<double> bin_probabilities(const BinFits& fits, int b, ModelKind kind, int size, const ShSmoothing& t,
                                       const QuadratureLevels& levels, const std::vector<double>& sh_basis) {
   if (kind == ModelKind::kVmf) {
-    double kappa = 0;
-    for (const VmfLobe& l : fits.lobes[b]) kappa = std::max(kappa, l.kappa);
     double escapes = 0;
     for (int h = 0; h < 2; ++h) escapes += sum(bin_counts(*fits.table, h, b));
-    return vmf_cell_probabilities(fits.lobes[b], levels.for_kappa(kappa, escapes));
+    return vmf_cell_probabilities(fits.lobes[b], levels, escapes);
   }
   std::vector<double> c = fits.sh[b];
   smooth_sh(c, size, t);
@@ -222,16 +224,18 @@ std::vector<ShSmoothing> sh_smoothings() {
 }
 
 // Fits on half 0, scores on half 1. For SH, also picks the smoothing with the lowest held-out
-// NLL; returns it in `best_t`.
+// NLL; returns it in `best_t`, and the fits in `fitted`. vMF lobes start from the fits of the
+// next smaller candidate when there are any.
 HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const DirectionGrid& grid,
-                         const QuadratureLevels& levels, ShSmoothing& best_t) {
+                         const QuadratureLevels& levels, ShSmoothing& best_t, BinFits& fitted,
+                         const BinFits* smaller) {
   std::unique_ptr<ShProjector> projector;
   std::vector<double> basis;
   if (s.kind == ModelKind::kSh) {
     projector = std::make_unique<ShProjector>(grid, size);
     basis = sh_basis_at(levels.at(1), size);
   }
-  BinFits fits = fit_bins(t, 0, s.kind, size, levels, projector.get(), s);
+  BinFits& fits = fitted = fit_bins(t, 0, s.kind, size, levels, projector.get(), s, smaller);
   HeldOut best;
   best_t = {};
   if (cancelled(s)) return best;  // bins were skipped: nothing to score
@@ -319,19 +323,28 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   QuadratureLevels levels(*grid);
 
   // Model size: given, or the smallest candidate whose held-out NLL is within two standard
-  // errors of the best (the larger model's gain would be noise).
+  // errors of the best (the larger model's gain would be noise). Candidates go up in size
+  // until one no longer lowers the held-out NLL: a larger one would not be chosen.
   int size = s.size;
   ShSmoothing smoothing;
+  BinFits chosen_fits;  // on half 0: where the final fit's lobes start
   if (s.automatic || s.kind == ModelKind::kSh) {
     std::vector<int> sizes = s.automatic ? auto_candidates(s.kind) : std::vector<int>{s.size};
     std::vector<HeldOut> scores;
     std::vector<ShSmoothing> ts;
+    std::vector<BinFits> half_fits;
     for (int candidate : sizes) {
       ShSmoothing best_t;
-      scores.push_back(heldout_for_size(t, s, candidate, *grid, levels, best_t));
+      BinFits fitted;
+      scores.push_back(heldout_for_size(t, s, candidate, *grid, levels, best_t, fitted,
+                                        half_fits.empty() ? nullptr : &half_fits.back()));
+      half_fits.push_back(std::move(fitted));
       ts.push_back(best_t);
       if (cancelled(s)) return {};
+      const std::size_t n = scores.size();
+      if (n > 1 && scores[n - 1].nll >= scores[n - 2].nll) break;
     }
+    sizes.resize(scores.size());
     std::size_t best = 0;
     for (std::size_t i = 1; i < scores.size(); ++i)
       if (scores[i].nll < scores[best].nll) best = i;
@@ -345,11 +358,13 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
     }
     size = sizes[chosen];
     smoothing = ts[chosen];
+    chosen_fits = std::move(half_fits[chosen]);
   }
 
   std::unique_ptr<ShProjector> projector;
   if (s.kind == ModelKind::kSh) projector = std::make_unique<ShProjector>(*grid, size);
-  BinFits fits = fit_bins(t, -1, s.kind, size, levels, projector.get(), s);
+  BinFits fits = fit_bins(t, -1, s.kind, size, levels, projector.get(), s,
+                          chosen_fits.status.empty() ? nullptr : &chosen_fits);
   if (cancelled(s)) return {};
 
   StfModel m;

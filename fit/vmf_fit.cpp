@@ -70,11 +70,15 @@ void deviance_residual(double n, double mu, double& r, double& dr) {
 // Residuals: one per cell with counts, and one for all empty cells together (their deviance
 // is 2 sum mu = 2 N (1 - sum of the other cells' probabilities)). Parameter blocks: softmax
 // logits [K], log kappa [K], then the K mean directions [3] each (on SphereManifold<3>).
+// Each lobe is integrated over the cells at the coarsest quadrature level accurate for its
+// own kappa (QuadratureLevels::for_kappa): broad lobes at the cell centres, narrow ones on
+// sub-cells, so a mixture costs what its narrowest lobe needs only once.
 class PoissonDeviance final : public ceres::CostFunction {
  public:
-  PoissonDeviance(const CellQuadrature& q, const std::vector<double>& counts, int lobes)
-      : q_(q), lobes_(lobes), row_of_cell_(counts.size(), -1) {
-    for (double a : q.weight) max_sub_cell_ = std::max(max_sub_cell_, a);
+  PoissonDeviance(const QuadratureLevels& levels, const std::vector<double>& counts, int lobes)
+      : levels_(levels), lobes_(lobes), row_of_cell_(counts.size(), -1) {
+    for (int level = 0; level <= QuadratureLevels::kMaxLevel; ++level)
+      for (double a : levels.at(level).weight) max_sub_cell_[level] = std::max(max_sub_cell_[level], a);
     for (double n : counts) widen_above_ += n;
     widen_above_ = 0.6 / std::sqrt(std::max(widen_above_, 1.0));
     for (std::size_t c = 0; c < counts.size(); ++c) {
@@ -104,19 +108,22 @@ class PoissonDeviance final : public ceres::CostFunction {
     for (int k = 0; k < K; ++k) {
       const double kappa = std::exp(params[1][k]);
       const Vec3 mean = normalize({params[2 + k][0], params[2 + k][1], params[2 + k][2]});
+      const int level = levels_.level_for_kappa(kappa, total_);
+      const CellQuadrature& q = levels_.at(level);
+      const double max_sub_cell = max_sub_cell_[level];
       // The widening is the quadrature's second-order correction (a sub-cell average of a
       // lobe is the lobe with the sub-cell's variance added): it changes cell masses by about
       // kappa a / 24. Where that is below 1/40 of the Poisson noise of N counts
       // (kappa a / 12 < 0.6 / sqrt(N)) it is left out, and the normalisation is the same at
       // every point.
-      const bool widen = kappa * max_sub_cell_ / 12 > widen_above_;
+      const bool widen = kappa * max_sub_cell / 12 > widen_above_;
       const double norm0 = vmf_pdf(kappa, 1.0), dlog0 = dlog_norm(kappa) * kappa;
       for (std::size_t c = 0; c < row_of_cell_.size(); ++c) {
         const int row = row_of_cell_[c];
-        for (int j = 0; j < q_.per_cell; ++j) {
-          const std::size_t i = c * q_.per_cell + j;
-          const Vec3& x = q_.point[i];
-          const double a = q_.weight[i], cosine = dot(mean, x);
+        for (int j = 0; j < q.per_cell; ++j) {
+          const std::size_t i = c * q.per_cell + j;
+          const Vec3& x = q.point[i];
+          const double a = q.weight[i], cosine = dot(mean, x);
           // Beyond 40 e-folds below the peak a point adds nothing a double can hold relative
           // to the lobe's mass (and exp would take its slow underflow path).
           if (kappa * (1 - cosine) > 40 * (1 + kappa * a / 12)) continue;
@@ -187,12 +194,12 @@ class PoissonDeviance final : public ceres::CostFunction {
   }
 
  private:
-  const CellQuadrature& q_;
+  const QuadratureLevels& levels_;
   int lobes_;
   std::vector<int> row_of_cell_;
   std::vector<double> count_;
   double total_ = 0;
-  double max_sub_cell_ = 0;  // the largest sub-cell solid angle
+  double max_sub_cell_[QuadratureLevels::kMaxLevel + 1] = {};  // the largest sub-cell solid angle per level
   double widen_above_ = 0;   // kappa a / 12 beyond which lobes are widened
 };
 
@@ -205,7 +212,7 @@ double kappa_from_resultant(double r) {
 // EM for a vMF mixture on cell centres weighted by counts (Banerjee et al. 2005): soft
 // assignments refine the k-means start, so Levenberg-Marquardt starts near the optimum.
 void em_on_cells(const std::vector<double>& counts, const std::vector<Vec3>& centre,
-                 std::vector<VmfLobe>& lobes, int iterations) {
+                 std::vector<VmfLobe>& lobes, int iterations, double max_kappa) {
   const int K = int(lobes.size());
   std::vector<double> r(K);
   for (int it = 0; it < iterations; ++it) {
@@ -227,7 +234,7 @@ void em_on_cells(const std::vector<double>& counts, const std::vector<Vec3>& cen
     for (int k = 0; k < K; ++k) {
       double len = length(sum[k]);
       if (mass[k] <= 1e-9 * total || len <= 0) continue;  // a starved lobe keeps its place
-      lobes[k] = {mass[k] / total, std::min(kappa_from_resultant(len / mass[k]), kMaxStartKappa),
+      lobes[k] = {mass[k] / total, std::min(kappa_from_resultant(len / mass[k]), max_kappa),
                   {sum[k].x / len, sum[k].y / len, sum[k].z / len}};
     }
   }
@@ -237,6 +244,12 @@ void em_on_cells(const std::vector<double>& counts, const std::vector<Vec3>& cen
 
 std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const CellQuadrature& q, int K) {
   const std::size_t cells = counts.size();
+  // Counts at cell centres resolve no lobe narrower than a cell: a cluster of one cell has a
+  // resultant of 1 and would start as a point lobe (kappa at the cap) that the binned
+  // likelihood can no longer move or widen, holding that cell's count while the other lobes
+  // fit the rest around it. Start lobes are at most as narrow as one mean cell (2 pi / kappa
+  // = 4 pi / cells); the likelihood stage narrows them where the data ask for it.
+  const double resolved = std::min(kMaxStartKappa, 0.5 * double(cells));
   std::vector<Vec3> centre(cells);
   for (std::size_t c = 0; c < cells; ++c) centre[c] = cell_centre(q, c);
   // Seeds: the fullest cell, then farthest-first weighted by counts.
@@ -278,13 +291,13 @@ std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const Cell
         continue;
       }
       mean[k] = {sum[k].x / len, sum[k].y / len, sum[k].z / len};
-      lobes[k] = {mass[k] / total, kappa_from_resultant(len / mass[k]), mean[k]};
+      lobes[k] = {mass[k] / total, std::min(kappa_from_resultant(len / mass[k]), resolved), mean[k]};
     }
   }
   double total = 0;
   for (const VmfLobe& l : lobes) total += l.weight;
   for (VmfLobe& l : lobes) l.weight /= total;
-  em_on_cells(counts, centre, lobes, 30);
+  em_on_cells(counts, centre, lobes, 30, resolved);
   return lobes;
 }
 
@@ -295,22 +308,16 @@ QuadratureLevels::QuadratureLevels(const DirectionGrid& grid) {
   pole_cell_ = grid.cell({0, 0, 1});
 }
 
-const CellQuadrature& QuadratureLevels::for_kappa(double kappa, double counts) const {
+int QuadratureLevels::level_for_kappa(double kappa, double counts) const {
   const double limit = 0.25 * std::pow(std::max(counts, 1.0), -0.25);
   int level = 0;
   while (level < kMaxLevel && kappa * cell_solid_angle_ / (12 << (2 * level)) > limit) ++level;
-  return levels_[level];
+  return level;
 }
 
 namespace {
 
-double max_kappa(const std::vector<VmfLobe>& lobes) {
-  double k = 0;
-  for (const VmfLobe& l : lobes) k = std::max(k, l.kappa);
-  return k;
-}
-
-VmfFitResult solve(const std::vector<double>& counts, const CellQuadrature& q,
+VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& levels,
                    const std::vector<VmfLobe>& start, const VmfFitOptions& options) {
   const int K = int(start.size());
   std::vector<double> logits(K), log_kappa(K), means(3 * K);
@@ -324,7 +331,7 @@ VmfFitResult solve(const std::vector<double>& counts, const CellQuadrature& q,
   ceres::Problem problem(problem_options);
   std::vector<double*> blocks = {logits.data(), log_kappa.data()};
   for (int k = 0; k < K; ++k) blocks.push_back(&means[3 * k]);
-  problem.AddResidualBlock(new PoissonDeviance(q, counts, K), nullptr, blocks);
+  problem.AddResidualBlock(new PoissonDeviance(levels, counts, K), nullptr, blocks);
   ceres::SphereManifold<3> sphere;
   for (int k = 0; k < K; ++k) problem.SetManifold(&means[3 * k], &sphere);
   for (int k = 0; k < K; ++k) {
@@ -340,7 +347,7 @@ VmfFitResult solve(const std::vector<double>& counts, const CellQuadrature& q,
   solver.max_num_iterations = options.max_iterations;
   // Stop once the deviance changes by less than 1e-6 of itself: far below one unit, the
   // scale of statistically meaningful differences.
-  solver.function_tolerance = 1e-6;
+  solver.function_tolerance = 1e-5;
   solver.num_threads = 1;
   solver.logging_type = ceres::SILENT;
   ceres::Solver::Summary summary;
@@ -360,20 +367,52 @@ VmfFitResult solve(const std::vector<double>& counts, const CellQuadrature& q,
 
 }  // namespace
 
+std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
+                                           double counts) {
+  std::vector<double> p(levels.at(0).point.size(), 0.0);
+  for (const VmfLobe& l : lobes) {
+    if (l.weight <= 0) continue;
+    const std::vector<double> one = vmf_cell_probabilities({{1.0, l.kappa, l.mean}}, levels.for_kappa(l.kappa, counts));
+    for (std::size_t c = 0; c < p.size(); ++c) p[c] += l.weight * one[c];
+  }
+  return p;
+}
+
+std::vector<VmfLobe> grow_lobes(std::vector<VmfLobe> lobes, int K) {
+  // Lobes of zero weight (a bin with fewer escapes than lobes) are dropped first.
+  lobes.erase(std::remove_if(lobes.begin(), lobes.end(), [](const VmfLobe& l) { return l.weight <= 0; }), lobes.end());
+  if (int(lobes.size()) > K) lobes.resize(std::size_t(K));
+  while (int(lobes.size()) < K) {
+    if (lobes.empty()) {
+      lobes.push_back({1, 1e-3, {0, 0, 1}});
+      continue;
+    }
+    // The heaviest lobe becomes two, half a standard deviation to each side of its mean, so
+    // the likelihood's gradient can pull them apart.
+    VmfLobe& l = *std::max_element(lobes.begin(), lobes.end(), [](const VmfLobe& a, const VmfLobe& b) { return a.weight < b.weight; });
+    Vec3 b1, b2;
+    orthonormal_basis(l.mean, b1, b2);
+    const double offset = std::min(0.5, 0.5 / std::sqrt(std::max(l.kappa, 1e-6)));
+    VmfLobe twin = l;
+    l.weight *= 0.5, twin.weight = l.weight;
+    l.mean = normalize({l.mean.x + offset * b1.x, l.mean.y + offset * b1.y, l.mean.z + offset * b1.z});
+    twin.mean = normalize({twin.mean.x - offset * b1.x, twin.mean.y - offset * b1.y, twin.mean.z - offset * b1.z});
+    lobes.push_back(twin);
+  }
+  double total = 0;
+  for (const VmfLobe& l : lobes) total += l.weight;
+  for (VmfLobe& l : lobes) l.weight /= total;
+  return lobes;
+}
+
+VmfFitResult fit_vmf_from(const std::vector<double>& counts, const QuadratureLevels& levels,
+                          const std::vector<VmfLobe>& start, const VmfFitOptions& options) {
+  return solve(counts, levels, start, options);
+}
+
 VmfFitResult fit_vmf(const std::vector<double>& counts, const QuadratureLevels& levels, int K,
                      const VmfFitOptions& options) {
-  std::vector<VmfLobe> start = initial_lobes(counts, levels.at(0), K);
-  double n = 0;
-  for (double c : counts) n += c;
-  const CellQuadrature* q = &levels.for_kappa(max_kappa(start), n);
-  VmfFitResult fit = solve(counts, *q, start, options);
-  const CellQuadrature* finer = &levels.for_kappa(max_kappa(fit.lobes), n);
-  if (finer->per_cell > q->per_cell) {
-    VmfFitResult refit = solve(counts, *finer, fit.lobes, options);
-    refit.iterations += fit.iterations;
-    return refit;
-  }
-  return fit;
+  return solve(counts, levels, initial_lobes(counts, levels.at(0), K), options);
 }
 
 }  // namespace stf::fit

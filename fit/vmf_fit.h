@@ -30,7 +30,8 @@ class QuadratureLevels {
   // widened point rule errs by O((kappa a / 12)^2) (a = sub-cell solid angle), kept below
   // the Poisson noise by kappa a / 12 <= 0.25 counts^(-1/4). At most kMaxLevel; beyond it
   // the widening alone carries near-delta lobes.
-  const CellQuadrature& for_kappa(double kappa, double counts = 1e8) const;
+  const CellQuadrature& for_kappa(double kappa, double counts = 1e8) const { return at(level_for_kappa(kappa, counts)); }
+  int level_for_kappa(double kappa, double counts = 1e8) const;
   // The cell holding +z, where the uncollided delta lands.
   std::int64_t pole_cell() const { return pole_cell_; }
 
@@ -40,10 +41,22 @@ class QuadratureLevels {
   std::int64_t pole_cell_ = 0;
 };
 
-// `counts` per cell of the grid; their total must be > 0. The quadrature level follows the
-// narrowest lobe: from the starting point, then once more from the fit if that is narrower.
+// Per-cell probabilities of a vMF mixture, each lobe at the quadrature level the fit used for
+// it against `counts` escapes.
+std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
+                                           double counts = 1e8);
+
+// `counts` per cell of the grid; their total must be > 0. Each lobe is integrated at the
+// quadrature level its kappa needs (QuadratureLevels::for_kappa).
 VmfFitResult fit_vmf(const std::vector<double>& counts, const QuadratureLevels& levels, int lobes,
                      const VmfFitOptions& options = {});
+
+// K start lobes from a fit with fewer (or as many): its heaviest lobes split in two.
+std::vector<VmfLobe> grow_lobes(std::vector<VmfLobe> lobes, int K);
+
+// The same, from given start lobes (e.g. a fit of the same size to fewer escapes).
+VmfFitResult fit_vmf_from(const std::vector<double>& counts, const QuadratureLevels& levels,
+                          const std::vector<VmfLobe>& start, const VmfFitOptions& options = {});
 
 // The deterministic starting point: spherical k-means on cell centres weighted by counts
 // (seeded at the fullest cell, then farthest-first), weights from the cluster masses, kappa

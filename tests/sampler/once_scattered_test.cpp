@@ -153,8 +153,11 @@ TEST(OnceScattered, FullSamplerWithEveryPartMatchesTheBinnedModelChiSquare) {
   for (int i = 0; i < n; ++i) {
     ExitSample x = s.sample(u(), u(), u(), u());
     ++counts[x.component];
-    if (x.component == kOnceScattered) ASSERT_EQ(x.pdf, model.once_fraction);
-    if (x.component == kUncollided) ASSERT_EQ(x.pdf, model.uncollided_probability());
+    if (x.component == kOnceScattered) {
+      ASSERT_EQ(x.pdf, model.once_fraction);
+    } else if (x.component == kUncollided) {
+      ASSERT_EQ(x.pdf, model.uncollided_probability());
+    }
     bin_like_a_table(x.point, x.direction, i, bins, *grid, observed, x.component == kOnceScattered);
   }
   test::Chi2Result r = test::chi2_test(observed, expected);
