@@ -3,7 +3,9 @@
 
 A model holds one direction density per alpha bin and, within the bin, an exit point uniform
 in area (p(alpha) piecewise proportional to sin(alpha)). For each medium this measures that
-structure alone, with no fitting involved: a 90-bin table is pooled into 45 and 18 bins
+structure alone, with no fitting involved: the escapes after two or more collisions of a
+90-bin table (models hold the uncollided and once-scattered escapes exactly, with their exact
+exit points; here they are kept from the table's own tallies) are pooled into 45 and 18 bins
 (summing groups of 2 and 5 bins) and spread back over the 90 bins by area, exactly as a
 perfectly fitted model of 45 or 18 bins would be, then compared (TV distance of the joint
 (alpha bin, cell) distribution of escapes) with an independent 90-bin reference table:
@@ -38,29 +40,32 @@ BINS = 90
 
 
 def joint(path):
-    """Escapes per (alpha bin, cell) as probabilities less the uncollided delta (which models
-    hold exactly, apart), the delta's probability and cell, and the bins' areas."""
+    """Escapes per (alpha bin, cell) as probabilities, split into what a model fits (two or more
+    collisions) and the singular parts it holds exactly (the uncollided delta and the
+    once-scattered escapes), and the bins' areas and cos(alpha) edges."""
     with h5py.File(path, "r") as f:
         w = f["escape/weight"][()]
         edges = f["escape/alpha_edges"][()]
         pole = int(np.argmax(f["grid/direction"][()][:, 2]))
-        uncollided = float(f.attrs["uncollided_weight"])
-    w[0, pole] -= uncollided
-    total = w.sum() + uncollided
-    return w / total, (uncollided / total, pole), np.cos(edges[:-1]) - np.cos(edges[1:]), np.cos(edges)
+        singular = np.zeros_like(w)
+        singular[0, pole] = float(f.attrs["uncollided_weight"])
+        if "escape/once_half" in f:
+            singular += f["escape/once_half"][()].sum(axis=0)
+    total = w.sum()
+    return (w - singular) / total, singular / total, np.cos(edges[:-1]) - np.cos(edges[1:]), np.cos(edges)
 
 
-def pooled(p, delta, area, group):
+def pooled(p, singular, area, group):
     """p pooled into groups of `group` bins, spread back over them in proportion to area; the
-    uncollided delta stays where it is."""
+    singular parts stay where they are."""
     bins, cells = p.shape
     sums = p.reshape(bins // group, group, cells).sum(axis=1)
     a = area.reshape(bins // group, group)
     share = (a / a.sum(axis=1, keepdims=True)).reshape(bins)
-    return with_delta(np.repeat(sums, group, axis=0) * share[:, None], delta)
+    return np.repeat(sums, group, axis=0) * share[:, None] + singular
 
 
-def interpolated(p, delta, area, edges_cos, group):
+def interpolated(p, singular, area, edges_cos, group):
     """p pooled as in pooled(), but spread back by the per-area density interpolated linearly
     in cos(alpha) between the pooled bins' centres (held flat beyond the outer centres), then
     renormalised: what a model smooth in alpha could reach."""
@@ -75,13 +80,7 @@ def interpolated(p, delta, area, edges_cos, group):
     fine = np.stack([np.interp(fine_centres[::-1], coarse_centres[::-1], density[::-1, c])[::-1]
                      for c in range(cells)], axis=1) * area[:, None]
     fine *= sums.sum() / fine.sum()
-    return with_delta(np.clip(fine, 0, None), delta)
-
-
-def with_delta(p, delta):
-    q = p.copy()
-    q[0, delta[1]] += delta[0]
-    return q
+    return np.clip(fine, 0, None) + singular
 
 
 def tv(p, q):
@@ -106,8 +105,8 @@ def main():
         stf.precompute(m, a.reference_paths, 2, ref, a.grid, BINS)
         p, dp, area, edges_cos = joint(table)
         r, dr, _, _ = joint(ref)
-        full_r = with_delta(r, dr)
-        row = {"medium": m, "tau": m["sigma_s"] + m["sigma_a"], "raw_table": tv(with_delta(p, dp), full_r)}
+        full_r = r + dr
+        row = {"medium": m, "tau": m["sigma_s"] + m["sigma_a"], "raw_table": tv(p + dp, full_r)}
         for group, bins in ((2, 45), (5, 18)):
             row[f"pooled_table_{bins}"] = tv(pooled(p, dp, area, group), full_r)
             row[f"pooled_reference_{bins}"] = tv(pooled(r, dr, area, group), full_r)

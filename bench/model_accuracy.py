@@ -7,6 +7,10 @@ of 1e5, 3e6 and 1e7 paths (other seeds). Models of each --model spec are fitted 
 1e7 tables, and every table and model is compared with the reference by `stf eval` (joint TV of
 the (alpha bin, cell) exit distribution, and the alpha-weighted conditional TV).
 
+Also per model of the 1e7 table: the share of its escapes that its smooth part sends below the
+tangent plane at their exit point (impossible directions; what a family on the outward
+hemisphere could at most move), from 1e6 samples.
+
 The targets checked per medium and model:
 - no bias floor: the model of the 1e7 table is no farther from the reference than the 1e7
   table itself, at <= 2% of its bytes (raw layout: bins * cells * 4 bytes);
@@ -60,6 +64,8 @@ def study(stf, m, sizes, specs, grid, bins, work, threads):
             e = stf.evaluate(model, ref, os.path.join(work, "eval.json"))
             row["models"].setdefault(spec, {})[label] = {"fit_seconds": fit_s, "bytes": model_bytes,
                                                           "joint_tv": e["joint_tv_distance"], "tv": e["tv_distance"]}
+            if label == "large":
+                row["models"][spec][label]["below_tangent"] = stf.below_tangent(model, path("samples"))
             os.remove(model)
         os.remove(table)
     os.remove(ref)
@@ -77,8 +83,8 @@ def study(stf, m, sizes, specs, grid, bins, work, threads):
 
 def markdown(rows, specs):
     lines = ["| tau | g | escapes in reference | raw 1e5 | raw 3e6 | raw 1e7 | " +
-             " | ".join(f"{s} of 1e5 | {s} of 1e7 | {s} bytes % | {s} fit s" for s in specs) + " |",
-             "|---" * (6 + 4 * len(specs)) + "|"]
+             " | ".join(f"{s} of 1e5 | {s} of 1e7 | {s} bytes % | {s} fit s | {s} below tangent %" for s in specs) + " |",
+             "|---" * (6 + 5 * len(specs)) + "|"]
     for r in rows:
         m, raw = r["medium"], r["raw"]
         cells = [f"{m['sigma_s'] + m['sigma_a']:g}", f"{m['g']:g}", f"{r['reference_escapes']:.3g}"] + [f"{raw[k]['joint_tv']:.4f}" for k in
@@ -86,12 +92,13 @@ def markdown(rows, specs):
         for s in specs:
             f = r["models"][s]
             if not r["judged"]:
-                cells += ["n/a"] * 4
+                cells += ["n/a"] * 5
                 continue
             cells += [f"{f['small']['joint_tv']:.4f}{'' if f['worth_30x'] else ' ✗'}",
                       f"{f['large']['joint_tv']:.4f}{'' if f['no_bias_floor'] else ' ✗'}",
                       f"{100 * f['bytes_share']:.2f}",
-                      f"{max(f['small']['fit_seconds'], f['large']['fit_seconds']):.1f}"]
+                      f"{max(f['small']['fit_seconds'], f['large']['fit_seconds']):.1f}",
+                      f"{100 * f['large']['below_tangent']:.2f}"]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

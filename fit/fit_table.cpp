@@ -145,8 +145,10 @@ BinFits fit_bins(const Table& t, int half, ModelKind kind, int size, const Quadr
     // No more lobes than the bin's escapes can support (about 50 per lobe).
     int lobes = std::clamp(int(n / 50), 1, size);
     const bool warm = start && start->status[b] == BinStatus::kFitted;
-    fits.lobes[b] = warm ? fit_vmf_from(counts, levels, grow_lobes(start->lobes[b], lobes)).lobes
-                         : fit_vmf(counts, levels, lobes).lobes;
+    VmfFitOptions options;
+    if (half >= 0) options.function_tolerance = 1e-4;  // for held-out scoring
+    fits.lobes[b] = warm ? fit_vmf_from(counts, levels, grow_lobes(start->lobes[b], lobes), options).lobes
+                         : fit_vmf(counts, levels, lobes, options).lobes;
     fits.lobes[b].resize(size, VmfLobe{0, 0, {0, 0, 1}});
   });
   std::vector<VmfLobe> uniform(size, VmfLobe{0, 0, {0, 0, 1}});

@@ -118,6 +118,9 @@ class PoissonDeviance final : public ceres::CostFunction {
       // every point.
       const bool widen = kappa * max_sub_cell / 12 > widen_above_;
       const double norm0 = vmf_pdf(kappa, 1.0), dlog0 = dlog_norm(kappa) * kappa;
+      // The widened lobe depends on the sub-cell's solid angle alone: on an equal-area grid
+      // (HEALPix) it is computed once per lobe, not once per point.
+      double widened_for = -1, stretch = 1, ke = kappa, norm = norm0, dlog = 0;
       for (std::size_t c = 0; c < row_of_cell_.size(); ++c) {
         const int row = row_of_cell_[c];
         for (int j = 0; j < q.per_cell; ++j) {
@@ -129,9 +132,10 @@ class PoissonDeviance final : public ceres::CostFunction {
           if (kappa * (1 - cosine) > 40 * (1 + kappa * a / 12)) continue;
           double v, vt, vm;
           if (widen) {
-            const double stretch = 1 + kappa * a / 12, ke = kappa / stretch;
-            double norm, dlog;
-            widened_norm(ke, norm, dlog);
+            if (a != widened_for) {
+              widened_for = a, stretch = 1 + kappa * a / 12, ke = kappa / stretch;
+              widened_norm(ke, norm, dlog);
+            }
             v = a * norm * std::exp(ke * (cosine - 1));
             // d v / d log kappa = v (dlog_norm(ke) + cos - 1) (d ke / d kappa) kappa.
             vt = v * (dlog + cosine - 1) * kappa / (stretch * stretch);
@@ -345,9 +349,7 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
   ceres::Solver::Options solver;
   solver.linear_solver_type = ceres::DENSE_QR;
   solver.max_num_iterations = options.max_iterations;
-  // Stop once the deviance changes by less than 1e-6 of itself: far below one unit, the
-  // scale of statistically meaningful differences.
-  solver.function_tolerance = 1e-5;
+  solver.function_tolerance = options.function_tolerance;
   solver.num_threads = 1;
   solver.logging_type = ceres::SILENT;
   ceres::Solver::Summary summary;

@@ -45,6 +45,17 @@ class Stf:
         with h5py.File(out, "r") as f, open(stats) as s:
             return f["image/mean"][()], f["image/variance_of_mean"][()], json.load(s)
 
+    def below_tangent(self, model, out, count=1000000, seed=5):
+        """Share of a model's samples of its smooth part that leave below the tangent plane at
+        their exit point (w . y < 0): mass a family on the outward hemisphere would put
+        elsewhere."""
+        self.run("sample", model, "--count", count, "--seed", seed, "-o", out)
+        with h5py.File(out, "r") as f:
+            y, w = f["samples/exit_point"][()], f["samples/exit_direction"][()]
+            smooth = f["samples/component"][()] == 0
+        os.remove(out)
+        return float(((y * w).sum(axis=1) < 0)[smooth].sum()) / len(smooth)
+
     def evaluate(self, candidate, reference, out):
         self.run("eval", candidate, "--reference", reference, "--json", out)
         with open(out) as f:

@@ -22,8 +22,14 @@ std::uint64_t fnv1a(const std::uint8_t* p, std::size_t n) {
 
 std::size_t pad4(std::size_t n) { return (n + 3) & ~std::size_t(3); }
 
-std::size_t parameter_count(int kind, std::uint32_t bins, std::uint32_t size, std::int32_t degree) {
-  if (kind == 0) return std::size_t(bins) * size * 5;
+// Float32 values per lobe: weight, kappa and the mean as (x, y, z) up to version 2, as its polar
+// and azimuthal angles since version 3 (a fifth smaller; float32 angles place a mean to ~1e-7
+// rad, below the width of any lobe a table resolves).
+std::size_t floats_per_lobe(std::uint32_t version) { return version >= 3 ? 4 : 5; }
+
+std::size_t parameter_count(int kind, std::uint32_t bins, std::uint32_t size, std::int32_t degree,
+                            std::uint32_t version = kPackVersion) {
+  if (kind == 0) return std::size_t(bins) * size * floats_per_lobe(version);
   std::size_t count = std::size_t(size + 1) * (size + 1);
   return degree >= 0 ? std::size_t(degree + 1) * count : std::size_t(bins) * count;
 }
@@ -108,7 +114,8 @@ std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries) {
     payload.align4();
     if (kind == 0) {
       for (const VmfLobe& l : m.vmf)
-        for (double v : {l.weight, l.kappa, l.mean.x, l.mean.y, l.mean.z}) payload.put(float(v));
+        for (double v : {l.weight, l.kappa, std::atan2(std::hypot(l.mean.x, l.mean.y), l.mean.z), std::atan2(l.mean.y, l.mean.x)})
+          payload.put(float(v));
     } else {
       for (double v : m.alpha_degree >= 0 ? m.sh_chebyshev : m.sh) payload.put(float(v));
     }
@@ -152,7 +159,7 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
                     std::size_t(bins) * nz * nz * 2 > (std::size_t(1) << 27)))
     return fail(error, "SH band limit, table size or alpha degree out of range");
   if (std::int64_t(record) != std::int64_t(4 + 4 + pad4(name_bytes) + 6 * 4 + doubles * 8 + 4 * std::size_t(bins) + pad4(bins) +
-                                            4 * parameter_count(int(kind), bins, size, kind == 1 ? degree : -1)))
+                                            4 * parameter_count(int(kind), bins, size, kind == 1 ? degree : -1, version)))
     return fail(error, "model record size does not match its contents");
 
   StfModel& m = e.model;
@@ -188,7 +195,15 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
   if (kind == 0) {
     m.lobes = int(size);
     for (std::size_t i = 0; i < std::size_t(bins) * size; ++i) {
-      double w = r.get<float>(), k = r.get<float>(), x = r.get<float>(), y = r.get<float>(), z = r.get<float>();
+      double w = r.get<float>(), k = r.get<float>(), x, y, z;
+      if (version >= 3) {
+        const double theta = r.get<float>(), phi = r.get<float>();
+        if (!(theta >= -1e-6 && theta <= kPi + 1e-6 && std::abs(phi) <= kPi + 1e-6))
+          return fail(error, "vMF lobe parameters out of range");
+        x = std::sin(theta) * std::cos(phi), y = std::sin(theta) * std::sin(phi), z = std::cos(theta);
+      } else {
+        x = r.get<float>(), y = r.get<float>(), z = r.get<float>();
+      }
       double len = std::sqrt(x * x + y * y + z * z);
       if (!(w >= 0 && finite(w) && k >= 0 && k <= 1e9 && finite(len) && len > 0.5 && len < 2))
         return fail(error, "vMF lobe parameters out of range");

@@ -10,7 +10,8 @@
 //     f64 tau, albedo, g, escape probability, absorbed fraction, truncated fraction,
 //         uncollided fraction (version >= 2), once-scattered fraction (version >= 3),
 //     f32 alpha probability [bins], u8 bin status [bins] padded to 4 bytes,
-//     vmf: f32 [bins * lobes * 5] (weight, kappa, mean x, y, z)
+//     vmf: f32 [bins * lobes * 4] (weight, kappa, mean's polar and azimuthal angle; up to
+//          version 2 f32 [bins * lobes * 5] (weight, kappa, mean x, y, z))
 //     sh:  f32 [bins * (L+1)^2], or with alpha degree D >= 0 f32 [(D+1) * (L+1)^2]
 // Alpha bins are linear on [0, pi]. Loading validates everything: a truncated, corrupted or
 // foreign file gives an error message, never undefined behaviour.
