@@ -79,8 +79,6 @@ double area_share(const Table& reference, int b, int f) {
   return area(b, b + 1) / area(j * f, (j + 1) * f);
 }
 
-
-namespace {
 std::vector<double> smooth_cell_probabilities(const StfModel& m, int b, const QuadratureLevels& levels) {
   if (m.kind == ModelKind::kVmf) {
     std::vector<VmfLobe> lobes(m.vmf.begin() + std::ptrdiff_t(b) * m.lobes, m.vmf.begin() + std::ptrdiff_t(b + 1) * m.lobes);
@@ -89,7 +87,6 @@ std::vector<double> smooth_cell_probabilities(const StfModel& m, int b, const Qu
   }
   return density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, w); }, levels.at(2));
 }
-}  // namespace
 
 std::vector<double> model_cell_probabilities(const StfModel& m, int b, const QuadratureLevels& levels) {
   std::vector<double> p = smooth_cell_probabilities(m, b, levels);
@@ -102,16 +99,23 @@ std::vector<double> model_cell_probabilities(const StfModel& m, int b, const Qua
 }
 
 BinnedModel::BinnedModel(const StfModel& model, const Table& reference, const DirectionGrid& grid)
-    : model_(model), reference_(reference), group_(alpha_group_size(model.alpha_edges, reference)) {
+    : model_(model), reference_(reference), group_(alpha_group_size(model.alpha_edges, reference)),
+      pole_cell_(grid.cell({0, 0, 1})) {
   if (model.once_fraction > 0) once_ = bin_once_scattered(model.tau, model.g, reference.alpha_edges, grid);
 }
 
-std::pair<double, std::vector<double>> BinnedModel::bin(int b, const std::vector<double>& rest_cells) const {
+std::pair<double, std::vector<double>> BinnedModel::bin(int b, const std::vector<double>& smooth_cells) const {
   const double once = model_.once_fraction;
-  const double rest = (1 - once) * model_.alpha_probability[b / group_] * area_share(reference_, b, group_);
-  std::vector<double> p(rest_cells.size());
-  for (std::size_t c = 0; c < p.size(); ++c) p[c] = rest * rest_cells[c];
-  double probability = rest;
+  // The smooth part is spread over the reference bins of its group by area, as the sampler
+  // spreads alpha; the delta sits at alpha = 0, in reference bin 0 alone.
+  const double smooth = model_.smooth_probability(b / group_) * area_share(reference_, b, group_);
+  std::vector<double> p(smooth_cells.size());
+  for (std::size_t c = 0; c < p.size(); ++c) p[c] = smooth * smooth_cells[c];
+  double probability = smooth;
+  if (b == 0) {
+    p[std::size_t(pole_cell_)] += model_.uncollided_probability();
+    probability += model_.uncollided_probability();
+  }
   if (once > 0) {
     for (const auto& [c, share] : once_.cells[std::size_t(b)]) p[std::size_t(c)] += once * share;
     probability += once * once_.bin_mass[std::size_t(b)];
@@ -126,10 +130,10 @@ Evaluation evaluate(const StfModel& m, const Table& reference, const std::vector
   const BinnedModel binned(m, reference, *grid);
   const int f = binned.group();
   const QuadratureLevels levels(*grid);
-  std::vector<double> rest;  // of the current model bin
+  std::vector<double> smooth;  // of the current model bin
   Evaluation ev = evaluate_bins(reference, [&](int b) {
-    if (b % f == 0) rest = model_cell_probabilities(m, b / f, levels);
-    return binned.bin(b, rest);
+    if (b % f == 0) smooth = smooth_cell_probabilities(m, b / f, levels);
+    return binned.bin(b, smooth);
   });
   if (chi2_dof.size() == ev.per_alpha.size()) {
     // Over the bins that have a value (fitted bins; borrowed and empty ones have -1).

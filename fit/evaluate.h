@@ -38,28 +38,33 @@ int alpha_group_size(const std::vector<double>& edges, const Table& reference);
 // on the unit sphere, since a sampler spreads alpha uniformly in cos(alpha) within a bin.
 double area_share(const Table& reference, int b, int f);
 
-// Per-cell probabilities of the model in alpha bin b (bin 0 with its uncollided delta in the
-// cell of +z), integrated over the cells of the grid
-// whose quadratures `levels` holds (build them once for all bins).
+// Per-cell probabilities of the fitted density of alpha bin b, integrated over the cells of the
+// grid whose quadratures `levels` holds (build them once for all bins); they sum to 1.
+std::vector<double> smooth_cell_probabilities(const StfModel& model, int bin, const QuadratureLevels& levels);
+// The same with bin 0's uncollided delta in the cell of +z: the distribution of a model bin's
+// escapes other than the once-scattered ones.
 std::vector<double> model_cell_probabilities(const StfModel& model, int bin, const QuadratureLevels& levels);
 
 // A model's exit distribution in a reference table's layout, bin by reference bin, every part in
-// its exact cells: the rest (model bins spread over the reference bins they group by area, as a
-// sampler spreads alpha) and the once-scattered part binned exactly.
+// its exact cells: the smooth part (model bins spread over the reference bins they group by
+// area, as a sampler spreads alpha), the uncollided delta in reference bin 0's cell of +z and
+// the once-scattered part binned exactly.
 class BinnedModel {
  public:
   // Throws std::invalid_argument when the model's alpha bins are not the reference's or groups
   // of them.
   BinnedModel(const StfModel& model, const Table& reference, const DirectionGrid& grid);
   int group() const { return group_; }
-  // Reference bin b: its probability and its distribution over cells, from the rest's cell
-  // probabilities in model bin b / group() (model_cell_probabilities, computed once per group).
-  std::pair<double, std::vector<double>> bin(int b, const std::vector<double>& rest_cells) const;
+  // Reference bin b: its probability and its distribution over cells, from the smooth part's
+  // cell probabilities in model bin b / group() (smooth_cell_probabilities, computed once per
+  // group).
+  std::pair<double, std::vector<double>> bin(int b, const std::vector<double>& smooth_cells) const;
 
  private:
   const StfModel& model_;
   const Table& reference_;
   int group_ = 1;
+  std::int64_t pole_cell_ = 0;
   OnceScatteredCells once_;
 };
 

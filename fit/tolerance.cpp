@@ -147,7 +147,7 @@ Certificate certify(const StfModel& model, const Table& fit, const Table& h,
   std::vector<std::vector<double>> cell_probability(bins, std::vector<double>(h.cells, 0.0));
   for_each_bin(bins, settings, [&](int j) {
     if (model.alpha_probability[j] > 0)
-      cell_probability[j] = model_cell_probabilities(model, j, levels);
+      cell_probability[j] = smooth_cell_probabilities(model, j, levels);
   });
   double chi2_var = 0, weight_sum = 0;
   for (int j = 0; j < bins; ++j) {

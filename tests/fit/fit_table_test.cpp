@@ -111,7 +111,7 @@ TEST(FitTable, UncollidedEscapesAreAnExactDeltaNotALobe) {
     std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
     QuadratureLevels levels(*grid);
     const BinnedModel binned(m, t, *grid);
-    std::vector<double> p = binned.bin(0, model_cell_probabilities(m, 0, levels)).second;
+    std::vector<double> p = binned.bin(0, smooth_cell_probabilities(m, 0, levels)).second;
     const std::int64_t pole = grid->cell({0, 0, 1});
     double bin0 = 0;
     for (std::int64_t c = 0; c < t.cells; ++c) bin0 += t.weight_half[0][c] + t.weight_half[1][c];
