@@ -32,7 +32,7 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
   std::ostringstream s;
   s << "{\n  \"model\": \"" << spec << "\", \"chosen_size\": " << r.chosen_size << ", \"smoothing\": " << r.smoothing
     << ", \"window\": \"" << (r.lanczos_window ? "lanczos" : "none") << "\""
-    << ", \"family\": \"" << (m.kind == ModelKind::kVmf ? "vmf" : "sh") << "\"";
+    << ", \"family\": \"" << (m.kind == ModelKind::kSh ? "sh" : m.hemispherical ? "hvmf" : "vmf") << "\"";
   if (r.family_heldout_nll.size() == 2)
     s << ", \"family_heldout_nll\": {\"vmf\": " << r.family_heldout_nll[0] << ", \"sh\": " << r.family_heldout_nll[1] << "}";
   s
@@ -56,7 +56,7 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
 fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, const fit::FitSettings& settings,
                                    fit::Provenance& provenance) {
   if (o.heldout.empty()) fail("--tolerance needs --heldout: an independent table of the same medium (another --seed)");
-  if (settings.any_family) fail("--tolerance needs one model family: --model vmf:K, vmf:auto, sh:L or sh:auto");
+  if (settings.any_family) fail("--tolerance needs one model family: --model vmf:K, vmf:auto, hvmf:K, hvmf:auto, sh:L or sh:auto");
   if (o.alpha_degree >= 0) fail("--alpha-degree and --tolerance cannot be combined");
   const double tolerance = o.tolerance;
   Table heldout = read_table(o.heldout);
@@ -163,7 +163,7 @@ void add_fit_command(CLI::App& app) {
   auto o = std::make_shared<FitOptions>();
   CLI::App* cmd = app.add_subcommand("fit", "Fit a raw table with vMF lobes or smoothed spherical harmonics");
   cmd->add_option("table", o->table, "Raw table (HDF5)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--model", o->model, "vmf:K, vmf:auto, sh:L or sh:auto (default vmf:4)");
+  cmd->add_option("--model", o->model, "auto, vmf:K, vmf:auto, hvmf:K, hvmf:auto, sh:L or sh:auto (default vmf:4)");
   cmd->add_option("-o,--output", o->output, "Output model (HDF5)")->required();
   cmd->add_option("--report", o->report, "Per-bin diagnostics and model selection as JSON");
   cmd->add_option("--pack", o->pack, "Also write the model as a binary pack for the sampler");

@@ -5,7 +5,8 @@
 
 namespace stf::fit {
 
-std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, const CellQuadrature& q) {
+std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, const CellQuadrature& q,
+                                           const std::vector<double>* factor) {
   const std::size_t cells = q.point.size() / q.per_cell;
   std::vector<double> p(cells, 0.0), mass(cells);
   for (const VmfLobe& lobe : lobes) {
@@ -15,7 +16,8 @@ std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, co
       double m = 0;
       for (int j = 0; j < q.per_cell; ++j) {
         std::size_t k = c * q.per_cell + j;
-        m += q.weight[k] * vmf_pdf(widened_kappa(lobe.kappa, q.weight[k]), dot(lobe.mean, q.point[k]));
+        m += q.weight[k] * vmf_pdf(widened_kappa(lobe.kappa, q.weight[k]), dot(lobe.mean, q.point[k])) *
+             (factor ? (*factor)[k] : 1.0);
       }
       mass[c] = m;
       total += m;

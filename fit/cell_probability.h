@@ -23,7 +23,10 @@ inline double widened_kappa(double kappa, double sub_cell_solid_angle) {
 }
 
 // Per-cell probabilities of a vMF mixture (weights summing to 1); they sum to 1.
-std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, const CellQuadrature& q);
+// With `factor` (one value per quadrature point), each lobe is multiplied by it before its
+// masses are normalised: hemispherical lobes.
+std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, const CellQuadrature& q,
+                                           const std::vector<double>* factor = nullptr);
 
 // Per-cell probabilities of a density per steradian, normalised to sum to 1 (all zero if the
 // density vanishes everywhere).

@@ -21,7 +21,7 @@ namespace stf::fit {
 
 FitSettings parse_model_spec(const std::string& spec) {
   const std::string allowed =
-      "--model must be auto, vmf:K (1..16), vmf:auto, sh:L (0..32) or sh:auto, got '" + spec + "'";
+      "--model must be auto, vmf:K or hvmf:K (1..16), vmf:auto, hvmf:auto, sh:L (0..32) or sh:auto, got '" + spec + "'";
   if (spec == "auto") {
     FitSettings s;
     s.automatic = s.any_family = true;
@@ -31,7 +31,8 @@ FitSettings parse_model_spec(const std::string& spec) {
   if (colon == std::string::npos) throw std::invalid_argument(allowed);
   std::string kind = spec.substr(0, colon), size = spec.substr(colon + 1);
   FitSettings s;
-  if (kind == "vmf") s.kind = ModelKind::kVmf;
+  s.hemispherical = kind == "hvmf";
+  if (kind == "vmf" || kind == "hvmf") s.kind = ModelKind::kVmf;
   else if (kind == "sh") s.kind = ModelKind::kSh;
   else throw std::invalid_argument(allowed);
   if (size == "auto") {
@@ -119,6 +120,7 @@ void fill_borrowed(std::vector<BinStatus>& status, std::vector<P>& params, const
 // Everything one pass of fitting (on the full table or one half) produces.
 struct BinFits {
   const Table* table = nullptr;
+  bool hemispherical = false;
   std::vector<BinStatus> status;
   std::vector<std::vector<VmfLobe>> lobes;  // vmf
   std::vector<std::vector<double>> sh;      // sh: raw projections, not yet smoothed
@@ -130,6 +132,7 @@ BinFits fit_bins(const Table& t, int half, ModelKind kind, int size, const Quadr
                  const ShProjector* projector, const FitSettings& s, const BinFits* start = nullptr) {
   BinFits fits;
   fits.table = &t;
+  fits.hemispherical = kind == ModelKind::kVmf && s.hemispherical;
   fits.status.assign(t.alpha_bins, BinStatus::kBorrowed);
   fits.lobes.resize(t.alpha_bins);
   fits.sh.resize(t.alpha_bins);
@@ -147,6 +150,10 @@ BinFits fit_bins(const Table& t, int half, ModelKind kind, int size, const Quadr
     const bool warm = start && start->status[b] == BinStatus::kFitted;
     VmfFitOptions options;
     if (half >= 0) options.function_tolerance = 1e-4;  // for held-out scoring
+    const OutwardFactors outward =
+        s.hemispherical ? outward_factors(levels, t.alpha_edges[std::size_t(b)], t.alpha_edges[std::size_t(b) + 1])
+                        : OutwardFactors{};
+    if (s.hemispherical) options.outward = &outward;
     fits.lobes[b] = warm ? fit_vmf_from(counts, levels, grow_lobes(start->lobes[b], lobes), options).lobes
                          : fit_vmf(counts, levels, lobes, options).lobes;
     fits.lobes[b].resize(size, VmfLobe{0, 0, {0, 0, 1}});
@@ -166,7 +173,10 @@ std::vector<double> bin_probabilities(const BinFits& fits, int b, ModelKind kind
   if (kind == ModelKind::kVmf) {
     double escapes = 0;
     for (int h = 0; h < 2; ++h) escapes += sum(bin_counts(*fits.table, h, b));
-    return vmf_cell_probabilities(fits.lobes[b], levels, escapes);
+    if (!fits.hemispherical) return vmf_cell_probabilities(fits.lobes[b], levels, escapes);
+    const std::vector<double>& edges = fits.table->alpha_edges;
+    const OutwardFactors outward = outward_factors(levels, edges[std::size_t(b)], edges[std::size_t(b) + 1]);
+    return vmf_cell_probabilities(fits.lobes[b], levels, escapes, &outward);
   }
   std::vector<double> c = fits.sh[b];
   smooth_sh(c, size, t);
@@ -287,8 +297,9 @@ void compress_across_alpha(StfModel& m, const std::vector<double>& escapes) {
 
 namespace {
 
-// --model auto: both families at their held-out sizes, scored on the same held-out half; the
-// one with the lower held-out negative log-likelihood is kept (with its report).
+// --model auto: hemispherical lobes (hvmf) and SH at their held-out sizes, scored on the same
+// held-out half; the one with the lower held-out negative log-likelihood is kept (with its
+// report).
 StfModel fit_any_family(const Table& t, const FitSettings& s, FitReport& r) {
   FitSettings one = s;
   one.any_family = false;
@@ -297,6 +308,7 @@ StfModel fit_any_family(const Table& t, const FitSettings& s, FitReport& r) {
   double nll[2];
   for (int i = 0; i < 2; ++i) {
     one.kind = i == 0 ? ModelKind::kVmf : ModelKind::kSh;
+    one.hemispherical = i == 0;  // the lobes in the form that respects the outward hemisphere
     models[i] = fit_table(t, one, &reports[i]);
     if (cancelled(s)) return {};
     const FitReport& ri = reports[i];
@@ -393,6 +405,8 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   if (s.kind == ModelKind::kVmf) {
     m.lobes = size;
     for (const auto& lobes : fits.lobes) m.vmf.insert(m.vmf.end(), lobes.begin(), lobes.end());
+    m.hemispherical = s.hemispherical;
+    m.rebuild_lobe_norms();
   } else {
     m.band_limit = size;
     m.sh_nz = std::max(32, 4 * size);

@@ -15,7 +15,8 @@ struct FitSettings {
   ModelKind kind = ModelKind::kVmf;
   int size = 4;            // lobes (vmf) or band limit (sh)
   bool automatic = false;  // vmf:auto / sh:auto: size chosen by held-out error
-  bool any_family = false; // auto: vmf and sh, each at its held-out size; the lower held-out NLL wins
+  bool any_family = false; // auto: hvmf and sh, each at its held-out size; the lower held-out NLL wins
+  bool hemispherical = false;  // hvmf: vMF lobes times each bin's outward cosine (stf/hemisphere.h)
   int threads = 0;         // 0: all cores; results do not depend on it
   int min_escapes = 10;    // bins with fewer escapes borrow their neighbour's model
   int alpha_degree = -1;   // sh: >= 0 replaces the bins' coefficients by a Chebyshev series in cos(alpha)
@@ -24,7 +25,8 @@ struct FitSettings {
   const std::atomic<bool>* cancel = nullptr;
 };
 
-// Parses "auto", "vmf:K", "vmf:auto", "sh:L", "sh:auto" (1 <= K <= 16, 0 <= L <= 32). Throws
+// Parses "auto", "vmf:K", "vmf:auto", "hvmf:K", "hvmf:auto", "sh:L", "sh:auto" (1 <= K <= 16,
+// 0 <= L <= 32). Throws
 // std::invalid_argument naming --model and what is allowed.
 FitSettings parse_model_spec(const std::string& spec);
 

@@ -36,6 +36,7 @@ void write_model(const StfModel& m, const FitReport& r, const Provenance& p, con
     put_attr(file, "truncated_fraction", m.truncated_fraction);
     put_attr(file, "uncollided_fraction", m.uncollided_fraction);
     put_attr(file, "once_fraction", m.once_fraction);
+    put_attr(file, "hemispherical", int(m.hemispherical));
     put_attr(file, "fit_time_s", r.fit_time_s);
     put_attr(file, "model_bytes", m.packed_bytes());
     put_attr(file, "generator", std::string("stf " STF_VERSION));
@@ -141,6 +142,7 @@ StfModel read_model(const std::string& path) {
     m.truncated_fraction = get_double(file, "truncated_fraction");
     if (version >= 2) m.uncollided_fraction = get_double(file, "uncollided_fraction");
     if (version >= 3) m.once_fraction = get_double(file, "once_fraction");
+    m.hemispherical = version >= 3 && has_attr(file, "hemispherical") && get_int(file, "hemispherical") != 0;
     m.alpha_probability = get_dataset(file, "/alpha/probability", {});
     const hsize_t bins = m.alpha_probability.size();
     m.alpha_edges = get_dataset(file, "/alpha/edges", {bins + 1});
@@ -167,6 +169,7 @@ StfModel read_model(const std::string& path) {
       m.rebuild_sh_tables();
     }
     if (std::string why = model_error(m); !why.empty()) throw std::runtime_error(path + ": " + why);
+    m.rebuild_lobe_norms();
     return m;
   } catch (const H5::Exception& e) {
     throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());
@@ -176,7 +179,7 @@ StfModel read_model(const std::string& path) {
 ModelSummary read_model_summary(const std::string& path) {
   StfModel m = read_model(path);
   ModelSummary s;
-  s.kind = m.kind == ModelKind::kVmf ? "vmf" : "sh";
+  s.kind = m.kind == ModelKind::kSh ? "sh" : m.hemispherical ? "hvmf" : "vmf";
   s.size = m.kind == ModelKind::kVmf ? m.lobes : m.band_limit;
   s.alpha_bins = m.bins();
   s.bytes = m.packed_bytes();

@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "cell_probability.h"
+#include "stf/hemisphere.h"
 
 namespace stf::fit {
 
@@ -75,8 +76,9 @@ void deviance_residual(double n, double mu, double& r, double& dr) {
 // sub-cells, so a mixture costs what its narrowest lobe needs only once.
 class PoissonDeviance final : public ceres::CostFunction {
  public:
-  PoissonDeviance(const QuadratureLevels& levels, const std::vector<double>& counts, int lobes)
-      : levels_(levels), lobes_(lobes), row_of_cell_(counts.size(), -1) {
+  PoissonDeviance(const QuadratureLevels& levels, const std::vector<double>& counts, int lobes,
+                  const OutwardFactors* outward)
+      : levels_(levels), outward_(outward), lobes_(lobes), row_of_cell_(counts.size(), -1) {
     for (int level = 0; level <= QuadratureLevels::kMaxLevel; ++level)
       for (double a : levels.at(level).weight) max_sub_cell_[level] = std::max(max_sub_cell_[level], a);
     for (double n : counts) widen_above_ += n;
@@ -110,6 +112,7 @@ class PoissonDeviance final : public ceres::CostFunction {
       const Vec3 mean = normalize({params[2 + k][0], params[2 + k][1], params[2 + k][2]});
       const int level = levels_.level_for_kappa(kappa, total_);
       const CellQuadrature& q = levels_.at(level);
+      const double* factor = outward_ ? (*outward_)[std::size_t(level)].data() : nullptr;
       const double max_sub_cell = max_sub_cell_[level];
       // The widening is the quadrature's second-order correction (a sub-cell average of a
       // lobe is the lobe with the sub-cell's variance added): it changes cell masses by about
@@ -126,7 +129,8 @@ class PoissonDeviance final : public ceres::CostFunction {
         for (int j = 0; j < q.per_cell; ++j) {
           const std::size_t i = c * q.per_cell + j;
           const Vec3& x = q.point[i];
-          const double a = q.weight[i], cosine = dot(mean, x);
+          const double a = q.weight[i], cosine = dot(mean, x), f = factor ? factor[i] : 1.0;
+          if (f <= 0) continue;  // below the tangent plane of every exit point of the bin
           // Beyond 40 e-folds below the peak a point adds nothing a double can hold relative
           // to the lobe's mass (and exp would take its slow underflow path).
           if (kappa * (1 - cosine) > 40 * (1 + kappa * a / 12)) continue;
@@ -145,6 +149,7 @@ class PoissonDeviance final : public ceres::CostFunction {
             vt = v * (dlog0 + kappa * (cosine - 1));
             vm = v * kappa;
           }
+          v *= f, vt *= f, vm *= f;  // the outward factor of hemispherical lobes
           total[k] += v;
           total_theta[k] += vt;
           total_mean[3 * k] += vm * x.x, total_mean[3 * k + 1] += vm * x.y, total_mean[3 * k + 2] += vm * x.z;
@@ -156,6 +161,12 @@ class PoissonDeviance final : public ceres::CostFunction {
         }
       }
     }
+
+    // A hemispherical lobe turned wholly below the bin's tangent planes has no mass at all: it
+    // then adds nothing and has no gradient (its masses and their derivatives are all 0, so a
+    // total of 1 keeps 0 / 0 out).
+    for (double& t : total)
+      if (!(t > 1e-150)) t = 1;
 
     // Probabilities, residuals, d residual / d mu.
     std::vector<double> p(rows, 0), dr(rows + 1);
@@ -199,6 +210,7 @@ class PoissonDeviance final : public ceres::CostFunction {
 
  private:
   const QuadratureLevels& levels_;
+  const OutwardFactors* outward_;
   int lobes_;
   std::vector<int> row_of_cell_;
   std::vector<double> count_;
@@ -335,7 +347,7 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
   ceres::Problem problem(problem_options);
   std::vector<double*> blocks = {logits.data(), log_kappa.data()};
   for (int k = 0; k < K; ++k) blocks.push_back(&means[3 * k]);
-  problem.AddResidualBlock(new PoissonDeviance(levels, counts, K), nullptr, blocks);
+  problem.AddResidualBlock(new PoissonDeviance(levels, counts, K, options.outward), nullptr, blocks);
   ceres::SphereManifold<3> sphere;
   for (int k = 0; k < K; ++k) problem.SetManifold(&means[3 * k], &sphere);
   for (int k = 0; k < K; ++k) {
@@ -369,12 +381,21 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
 
 }  // namespace
 
+OutwardFactors outward_factors(const QuadratureLevels& levels, double a0, double a1) {
+  OutwardFactors f;
+  for (int level = 0; level <= QuadratureLevels::kMaxLevel; ++level)
+    for (const Vec3& x : levels.at(level).point) f[std::size_t(level)].push_back(mean_exit_cosine(x, a0, a1));
+  return f;
+}
+
 std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
-                                           double counts) {
+                                           double counts, const OutwardFactors* outward) {
   std::vector<double> p(levels.at(0).point.size(), 0.0);
   for (const VmfLobe& l : lobes) {
     if (l.weight <= 0) continue;
-    const std::vector<double> one = vmf_cell_probabilities({{1.0, l.kappa, l.mean}}, levels.for_kappa(l.kappa, counts));
+    const int level = levels.level_for_kappa(l.kappa, counts);
+    const std::vector<double> one = vmf_cell_probabilities({{1.0, l.kappa, l.mean}}, levels.at(level),
+                                                           outward ? &(*outward)[std::size_t(level)] : nullptr);
     for (std::size_t c = 0; c < p.size(); ++c) p[c] += l.weight * one[c];
   }
   return p;
@@ -414,7 +435,17 @@ VmfFitResult fit_vmf_from(const std::vector<double>& counts, const QuadratureLev
 
 VmfFitResult fit_vmf(const std::vector<double>& counts, const QuadratureLevels& levels, int K,
                      const VmfFitOptions& options) {
-  return solve(counts, levels, initial_lobes(counts, levels.at(0), K), options);
+  if (!options.outward) return solve(counts, levels, initial_lobes(counts, levels.at(0), K), options);
+  // Hemispherical lobes are multiplied by the outward factor: they start from the counts with
+  // that factor divided out (floored, so that grazing cells do not dominate), the shape the
+  // lobes themselves must take.
+  std::vector<double> lobe_counts(counts);
+  const std::vector<double>& factor = (*options.outward)[0];
+  for (std::size_t c = 0; c < lobe_counts.size(); ++c) lobe_counts[c] = factor[c] > 0 ? counts[c] / std::max(factor[c], 0.1) : 0.0;
+  // Their likelihood has more poor local optima than plain lobes': K lobes grow from a fit of
+  // half as many (the heaviest split), down to two from k-means.
+  if (K > 2) return solve(counts, levels, grow_lobes(fit_vmf(counts, levels, (K + 1) / 2, options).lobes, K), options);
+  return solve(counts, levels, initial_lobes(lobe_counts, levels.at(0), K), options);
 }
 
 }  // namespace stf::fit

@@ -2,6 +2,7 @@
 // binned Poisson likelihood (Ceres, Levenberg-Marquardt on deviance residuals).
 #pragma once
 
+#include <array>
 #include <vector>
 
 #include "grid.h"
@@ -9,7 +10,14 @@
 
 namespace stf::fit {
 
+class QuadratureLevels;
+
+// A bin's mean outward cosine (stf/hemisphere.h) at every point of each quadrature level: the
+// factor that makes vMF lobes hemispherical. Empty vectors: plain lobes.
+using OutwardFactors = std::array<std::vector<double>, 3>;
+
 struct VmfFitOptions {
+  const OutwardFactors* outward = nullptr;  // hemispherical lobes of this bin, or null
   int max_iterations = 100;
   // Stop once the deviance changes by less than this share of itself between iterations:
   // 1e-5 is ~0.05 at the deviances of a bin's few thousand cells, far below one unit, the
@@ -47,9 +55,12 @@ class QuadratureLevels {
 };
 
 // Per-cell probabilities of a vMF mixture, each lobe at the quadrature level the fit used for
-// it against `counts` escapes.
+// it against `counts` escapes; with `outward`, of hemispherical lobes.
 std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
-                                           double counts = 1e8);
+                                           double counts = 1e8, const OutwardFactors* outward = nullptr);
+
+// The outward factors of the alpha bin [a0, a1] at the points of every level.
+OutwardFactors outward_factors(const QuadratureLevels& levels, double a0, double a1);
 
 // `counts` per cell of the grid; their total must be > 0. Each lobe is integrated at the
 // quadrature level its kappa needs (QuadratureLevels::for_kappa).

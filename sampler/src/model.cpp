@@ -4,7 +4,9 @@
 #include <cmath>
 #include <string>
 
+#include "stf/hemisphere.h"
 #include "stf/pack.h"
+#include "stf/quadrature.h"
 #include "stf/sh.h"
 
 namespace stf {
@@ -17,17 +19,52 @@ int equal_area_cell(int nz, const Vec3& w) {
   return row * 2 * nz + col;
 }
 
+double StfModel::outward_factor(int bin, const Vec3& w) const {
+  return hemispherical ? mean_exit_cosine(w, alpha_edges[std::size_t(bin)], alpha_edges[std::size_t(bin) + 1]) : 1.0;
+}
+
 double StfModel::direction_pdf(int bin, const Vec3& w) const {
   if (kind == ModelKind::kVmf) {
     double p = 0;
     for (int k = 0; k < lobes; ++k) {
-      const VmfLobe& l = vmf[std::size_t(bin) * lobes + k];
-      p += l.weight * vmf_pdf(l.kappa, dot(l.mean, w));
+      const std::size_t i = std::size_t(bin) * lobes + k;
+      const VmfLobe& l = vmf[i];
+      p += l.weight * vmf_pdf(l.kappa, dot(l.mean, w)) / (hemispherical ? lobe_norm[i] : 1.0);
     }
-    return p;
+    return p * outward_factor(bin, w);
   }
   const std::size_t cells = std::size_t(2) * sh_nz * sh_nz;
   return sh_table[bin * cells + equal_area_cell(sh_nz, w)];
+}
+
+void StfModel::rebuild_lobe_norms() {
+  lobe_norm.assign(vmf.size(), 1.0);
+  if (!hemispherical || kind != ModelKind::kVmf) return;
+  // E[factor(w)] under each lobe: Gauss-Legendre over the lobe's own quantile of cos(theta)
+  // (so a narrow lobe needs no finer rule than a broad one) times a uniform azimuth rule.
+  constexpr int kPanels = 8, kAzimuths = 32;
+  for (int b = 0; b < bins(); ++b)
+    for (int k = 0; k < lobes; ++k) {
+      const std::size_t i = std::size_t(b) * lobes + k;
+      const VmfLobe& l = vmf[i];
+      Vec3 b1, b2;
+      orthonormal_basis(l.mean, b1, b2);
+      double sum = 0;
+      for (int p = 0; p < kPanels; ++p)
+        sum += gauss8(
+            [&](double u) {
+              const double c = sample_vmf_cos(l.kappa, u), s = std::sqrt(std::max(0.0, 1 - c * c));
+              double ring = 0;
+              for (int a = 0; a < kAzimuths; ++a) {
+                const double phi = 2 * kPi * (a + 0.5) / kAzimuths, x = s * std::cos(phi), y = s * std::sin(phi);
+                ring += outward_factor(b, {x * b1.x + y * b2.x + c * l.mean.x, x * b1.y + y * b2.y + c * l.mean.y,
+                                           x * b1.z + y * b2.z + c * l.mean.z});
+              }
+              return ring / kAzimuths;
+            },
+            double(p) / kPanels, double(p + 1) / kPanels);
+      lobe_norm[i] = std::max(sum, 1e-300);
+    }
 }
 
 void StfModel::rebuild_sh_tables() {

@@ -1,8 +1,5 @@
 #include "stf/once_scattered.h"
 
-#include <cstdint>
-#include <cstring>
-
 #include "stf/math.h"
 #include "stf/quadrature.h"
 
@@ -12,29 +9,6 @@ namespace {
 
 constexpr int kSCells = 64, kUCells = 64;
 
-// Retries after a rejection draw from SplitMix64, seeded from the bits of the first try's
-// numbers: deterministic for given inputs, independent of the rejected try's outcome.
-class RetryStream {
- public:
-  RetryStream(double u0, double u1, double u2, double u3) {
-    for (double u : {u0, u1, u2, u3}) {
-      std::uint64_t bits;
-      std::memcpy(&bits, &u, sizeof bits);
-      state_ = state_ * 0x9E3779B97F4A7C15ull + bits;
-      next();
-    }
-  }
-  double uniform() { return double(next() >> 11) * 0x1.0p-53; }
-
- private:
-  std::uint64_t next() {
-    std::uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-  }
-  std::uint64_t state_ = 0x243F6A8885A308D3ull;
-};
 
 }  // namespace
 

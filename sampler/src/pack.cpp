@@ -105,7 +105,7 @@ std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries) {
     payload.align4();
     for (std::uint32_t v : {std::uint32_t(kind), bins, size, std::uint32_t(m.sh_nz)}) payload.put(v);
     payload.put(std::int32_t(m.alpha_degree));
-    payload.put(std::uint32_t(0));
+    payload.put(std::uint32_t(m.hemispherical ? 1 : 0));  // flags
     for (double v : {m.tau, m.albedo, m.g, m.escape_probability, m.absorbed_fraction, m.truncated_fraction,
                      m.uncollided_fraction, m.once_fraction})
       payload.put(v);
@@ -150,7 +150,7 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
   const std::uint32_t kind = r.get<std::uint32_t>(), bins = r.get<std::uint32_t>();
   const std::uint32_t size = r.get<std::uint32_t>(), nz = r.get<std::uint32_t>();
   const std::int32_t degree = r.get<std::int32_t>();
-  r.get<std::uint32_t>();
+  const std::uint32_t flags = r.get<std::uint32_t>();  // reserved (0) before version 3
   if (!r.ok) return fail(error, "truncated model record");
   if (kind > 1) return fail(error, "unknown model kind " + std::to_string(kind));
   if (bins < 1 || bins > 100000) return fail(error, "alpha bin count out of range");
@@ -164,6 +164,8 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
 
   StfModel& m = e.model;
   m.kind = kind == 0 ? ModelKind::kVmf : ModelKind::kSh;
+  if (version >= 3 && flags > 1) return fail(error, "unknown model flags");
+  m.hemispherical = version >= 3 && kind == 0 && (flags & 1);
   m.tau = r.get<double>(), m.albedo = r.get<double>(), m.g = r.get<double>();
   m.escape_probability = r.get<double>(), m.absorbed_fraction = r.get<double>(), m.truncated_fraction = r.get<double>();
   if (version >= 2) m.uncollided_fraction = r.get<double>();
@@ -215,6 +217,7 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
       if (std::abs(s - 1) > 1e-4) return fail(error, "vMF weights of a bin do not sum to 1");
       for (std::uint32_t k = 0; k < size; ++k) m.vmf[b * size + k].weight /= s;
     }
+    m.rebuild_lobe_norms();
   } else {
     m.band_limit = int(size);
     m.sh_nz = int(nz);

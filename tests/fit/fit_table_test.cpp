@@ -121,7 +121,7 @@ TEST(FitTable, UncollidedEscapesAreAnExactDeltaNotALobe) {
   }
 }
 
-// --model auto: vmf and sh each at its held-out size; the family with the lower held-out NLL.
+// --model auto: hvmf and sh each at its held-out size; the family with the lower held-out NLL.
 TEST(FitTable, AutoPicksTheFamilyWithTheLowerHeldOutError) {
   EXPECT_TRUE(parse_model_spec("auto").any_family);
   EXPECT_THROW(parse_model_spec("auto:3"), std::invalid_argument);
@@ -131,8 +131,9 @@ TEST(FitTable, AutoPicksTheFamilyWithTheLowerHeldOutError) {
     StfModel model = fit_table(t, parse_model_spec("auto"), &r);
     ASSERT_EQ(r.family_heldout_nll.size(), 2u);
     EXPECT_EQ(model.kind, r.family_heldout_nll[1] < r.family_heldout_nll[0] ? ModelKind::kSh : ModelKind::kVmf);
+    EXPECT_EQ(model.hemispherical, model.kind == ModelKind::kVmf);
     FitReport alone;
-    fit_table(t, parse_model_spec(model.kind == ModelKind::kVmf ? "vmf:auto" : "sh:auto"), &alone);
+    fit_table(t, parse_model_spec(model.kind == ModelKind::kVmf ? "hvmf:auto" : "sh:auto"), &alone);
     EXPECT_EQ(r.chosen_size, alone.chosen_size);
   }
 }

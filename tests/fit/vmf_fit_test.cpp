@@ -194,5 +194,34 @@ TEST(VmfFit, MoreLobesNeverFitAPeakedHistogramWorse) {
   }
 }
 
+// Hemispherical lobes (each times its bin's mean outward cosine) against a cosine law on the
+// outward hemisphere, the shape of diffuse exits: noise-free counts, so any error is the
+// family's. Two such lobes hold it; plain lobes leak below the tangent plane and cannot form the
+// grazing fall-off, even twelve of them.
+TEST(VmfFit, HemisphericalLobesHoldACosineLawThatPlainLobesCannot) {
+  auto grid = make_grid("healpix:8");
+  QuadratureLevels levels(*grid);
+  const double a0 = 0.6, a1 = 0.67;  // an alpha bin of 4 degrees
+  auto law = [&](const Vec3& w) {
+    double s = 0;  // the cosine to the exit normal, averaged over the bin, times a tilt
+    for (int i = 0; i < 32; ++i) {
+      const double a = a0 + (i + 0.5) / 32 * (a1 - a0);
+      s += std::max(0.0, w.x * std::sin(a) + w.z * std::cos(a));
+    }
+    return s / 32 * (1 + 0.5 * w.z);
+  };
+  const std::vector<double> p = density_cell_probabilities(law, grid->quadrature(QuadratureLevels::kMaxLevel + 1));
+  std::vector<double> counts(p.size());
+  for (std::size_t c = 0; c < p.size(); ++c) counts[c] = 1e6 * p[c];
+  const OutwardFactors outward = outward_factors(levels, a0, a1);
+  VmfFitOptions hemi;
+  hemi.outward = &outward;
+  const VmfFitResult h = fit_vmf(counts, levels, 2, hemi), plain = fit_vmf(counts, levels, 12);
+  const double tv_h = tv(vmf_cell_probabilities(h.lobes, levels, 1e6, &outward), p);
+  const double tv_plain = tv(vmf_cell_probabilities(plain.lobes, levels, 1e6), p);
+  EXPECT_LT(tv_h, 0.01);
+  EXPECT_GT(tv_plain, 2 * tv_h);
+}
+
 }  // namespace
 }  // namespace stf::fit

@@ -80,14 +80,19 @@ std::vector<PackEntry> round_trip(const std::vector<PackEntry>& in) {
 }
 
 TEST(Pack, RoundTripKeepsModelsToFloatPrecision) {
-  std::vector<PackEntry> in = {{"milk", test::make_vmf_model()}, {"", test::make_sh_model()}};
+  std::vector<PackEntry> in = {{"milk", test::make_vmf_model()}, {"", test::make_sh_model()}, {"h", test::make_vmf_model()}};
+  in[2].model.hemispherical = true;
+  in[2].model.rebuild_lobe_norms();
   in[0].model.once_fraction = 0.25;
   in[0].model.uncollided_fraction = 0.1 * in[0].model.alpha_probability[0];
   std::vector<PackEntry> out = round_trip(in);
-  ASSERT_EQ(out.size(), 2u);
+  ASSERT_EQ(out.size(), 3u);
   EXPECT_EQ(out[0].name, "milk");
+  EXPECT_TRUE(out[2].model.hemispherical);
+  EXPECT_FALSE(out[0].model.hemispherical);
   // One header; each record as packed_bytes() reports it, plus its name padded to 4 bytes.
-  EXPECT_EQ(write_pack(in).size(), std::size_t(in[0].model.packed_bytes() + in[1].model.packed_bytes() - 32 + 4));
+  EXPECT_EQ(write_pack(in).size(),
+            std::size_t(in[0].model.packed_bytes() + in[1].model.packed_bytes() + in[2].model.packed_bytes() - 64 + 4 + 4));
   std::uint64_t s = 61;
   for (std::size_t e = 0; e < in.size(); ++e) {
     EXPECT_EQ(out[e].model.tau, in[e].model.tau);
@@ -112,7 +117,7 @@ TEST(Pack, SamplerDensityEqualsTheFittersDensity) {
   settings.grid = "healpix:4";
   settings.alpha_bins = 9;
   Table t = *precompute({4, 0.5, 0.5, 1}, settings);
-  for (const char* spec : {"vmf:3", "sh:6"}) {
+  for (const char* spec : {"vmf:3", "hvmf:3", "sh:6"}) {
     StfModel fitted = fit::fit_table(t, fit::parse_model_spec(spec));
     ShellSampler from_pack(round_trip({{"", fitted}}).front().model), direct(fitted);
     std::uint64_t s = 62;

@@ -93,12 +93,25 @@ TEST(Sampler, VmfLobeMatchesItsPdfChiSquare) {
   }
 }
 
+// A model whose bin 0 also holds an uncollided delta (40% of that bin).
+StfModel with_uncollided(StfModel m) {
+  m.uncollided_fraction = 0.4 * m.alpha_probability[0];
+  return m;
+}
+
+// The same lobes made hemispherical: each times its bin's outward cosine, renormalised.
+StfModel hemispherical(StfModel m) {
+  m.hemispherical = true;
+  m.rebuild_lobe_norms();
+  return m;
+}
+
 TEST(Sampler, DirectionSamplersMatchTheirPdfChiSquare) {
   const std::uint64_t seed = test::test_seed(52);
   SCOPED_TRACE(test::seed_trace(seed));
-  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model()}) {
+  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), hemispherical(test::make_vmf_model())}) {
     ShellSampler s(model);
-    for (int bin : {0, 1}) {
+    for (int bin : {0, 1, 2}) {
       AxisBins bins({0, 0, 1}, 2.0);
       bins.n_t = 16;
       test::Chi2Result r = chi2_directions([&](double a, double b) { return s.sample_direction(bin, a, b); },
@@ -108,11 +121,6 @@ TEST(Sampler, DirectionSamplersMatchTheirPdfChiSquare) {
   }
 }
 
-// A model whose bin 0 also holds an uncollided delta (40% of that bin).
-StfModel with_uncollided(StfModel m) {
-  m.uncollided_fraction = 0.4 * m.alpha_probability[0];
-  return m;
-}
 
 // The whole sample: alpha bin, the position of cos(alpha) inside it, beta, and the direction
 // relative to the exit point, against the pdf's own marginals; the uncollided delta as one more
@@ -120,7 +128,8 @@ StfModel with_uncollided(StfModel m) {
 TEST(Sampler, FullSampleMatchesPdfChiSquare) {
   const std::uint64_t seed = test::test_seed(53);
   SCOPED_TRACE(test::seed_trace(seed));
-  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model())}) {
+  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model()),
+                               hemispherical(with_uncollided(test::make_vmf_model()))}) {
     ShellSampler s(model);
     const int bins = model.bins(), sub = 3, quarters = 4, n = 600000;
     AxisBins dir({0, 0, 1}, 2.0);
@@ -163,7 +172,8 @@ TEST(Sampler, FullSampleMatchesPdfChiSquare) {
 }
 
 TEST(Sampler, PdfOfASampleIsTheReturnedPdf) {
-  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model())}) {
+  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model()),
+                               hemispherical(with_uncollided(test::make_vmf_model()))}) {
     ShellSampler s(model);
     Uniforms u{54};
     for (int i = 0; i < 20000; ++i) {
@@ -182,7 +192,8 @@ TEST(Sampler, PdfOfASampleIsTheReturnedPdf) {
 // beta-average at its middle; directions on a fine (z, phi) midpoint grid, which refines the
 // SH model's equal-area cells exactly and resolves the kappa = 80 lobe to ~1e-4.
 TEST(Sampler, PdfIntegratesToOne) {
-  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model())}) {
+  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model()),
+                               hemispherical(with_uncollided(test::make_vmf_model()))}) {
     ShellSampler s(model);
     const int nb = 3, nz = 384, nphi = 768;
     double total = 0;
@@ -253,7 +264,8 @@ TEST(Sampler, WorldSpaceSamplesAreRotatedLocalOnes) {
 // jump() is sample_world() less the pdf: the same exit for the same uniforms, for every
 // component (the uncollided delta included), so the chi-square tests above cover it.
 TEST(Sampler, JumpIsSampleWorldWithoutThePdf) {
-  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model())}) {
+  for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model()),
+                               hemispherical(with_uncollided(test::make_vmf_model()))}) {
     ShellSampler s(model);
     Uniforms u{57};
     for (int i = 0; i < 20000; ++i) {

@@ -1,6 +1,9 @@
 // Small numerical kernels of the sampler.
 #pragma once
 
+#include <cstdint>
+#include <cstring>
+
 namespace stf {
 
 // sin and cos of 2 pi u for u in [0, 1], to double precision, without libm: the quadrant
@@ -37,5 +40,29 @@ inline void sincos_2pi(double u, double& s, double& c) {
     default: s = -ca, c = sa; break;
   }
 }
+
+// Uniforms for the retries of a rejection sampler: SplitMix64 seeded from the bits of the first
+// try's numbers, so a draw stays a deterministic function of its inputs.
+class RetryStream {
+ public:
+  RetryStream(double u0, double u1, double u2, double u3) {
+    for (double u : {u0, u1, u2, u3}) {
+      std::uint64_t bits;
+      std::memcpy(&bits, &u, sizeof bits);
+      state_ = state_ * 0x9E3779B97F4A7C15ull + bits;
+      next();
+    }
+  }
+  double uniform() { return double(next() >> 11) * 0x1.0p-53; }
+
+ private:
+  std::uint64_t next() {
+    std::uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  }
+  std::uint64_t state_ = 0x243F6A8885A308D3ull;
+};
 
 }  // namespace stf

@@ -47,6 +47,11 @@ struct StfModel {
   // kVmf: `lobes` lobes per bin, [bins * lobes].
   int lobes = 0;
   std::vector<VmfLobe> vmf;
+  // Hemispherical lobes (format version 3): in bin b each lobe is multiplied by the bin's mean
+  // outward cosine (stf/hemisphere.h) and renormalised by lobe_norm, its integral, which
+  // rebuild_lobe_norms() derives.
+  bool hemispherical = false;
+  std::vector<double> lobe_norm;  // [bins * lobes]
 
   // kSh: real SH coefficients per bin, [bins * (band_limit + 1)^2], windowed and smoothed.
   // The density used is max(SH, 0) tabulated at the centres of an equal-area (z, phi) grid
@@ -74,6 +79,9 @@ struct StfModel {
   // Density p(w' | alpha bin) per steradian: the vMF mixture, or the tabulated clamped SH.
   double direction_pdf(int bin, const Vec3& w) const;
   void rebuild_sh_tables();
+  void rebuild_lobe_norms();
+  // A bin's mean outward cosine at w (1 for a model that is not hemispherical).
+  double outward_factor(int bin, const Vec3& w) const;
   // Size of a pack holding just this model (stf/pack.h): parameters as float32.
   std::int64_t packed_bytes() const;
 };

@@ -82,6 +82,8 @@ class ShellSampler {
     double expm1_2k;    // expm1(-2 kappa)
   };
   double lobe_pdf(const Lobe& l, const Vec3& w) const;
+  // A direction of lobe l from its quantile u of cos(theta) and azimuth 2 pi v.
+  Vec3 lobe_direction(const Lobe& l, double u, double v) const;
   int alpha_bin_of(double cos_alpha) const;
   // sample() less the pdf; `bin` is where the smooth part was drawn (-1: the delta).
   ExitSample draw(double u0, double u1, double u2, double u3, int& bin, Vec3& local) const;
