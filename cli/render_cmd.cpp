@@ -55,7 +55,7 @@ scene::Scene render_scene(const RenderOptions& o) {
   sc.settings.paths = 4'000'000;
   sc.settings.grid = "healpix:16";
   sc.settings.alpha_bins = 45;
-  sc.settings.model = "vmf:auto";
+  sc.settings.model = "hvmf:auto";
   const Medium& m = o.medium;
   const double smallest = std::max(sc.settings.tau_skip, kSmallestStrideTau);
   sc.media.push_back({"render", m.sigma_s, m.sigma_a, m.g, std::min(m.radius, smallest / m.sigma_t()), m.radius, 0});

@@ -22,6 +22,7 @@ std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, co
       mass[c] = m;
       total += m;
     }
+    if (!(total > 0)) continue;  // a hemispherical lobe wholly below the bin's tangent planes
     for (std::size_t c = 0; c < cells; ++c) p[c] += lobe.weight * mass[c] / total;
   }
   return p;

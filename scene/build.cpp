@@ -91,7 +91,7 @@ void compute_to_tolerance(const Plan& plan, const PlanEntry& e, const fit::FitSe
     // held back by what the model kind cannot represent, and more paths will not help.
     const double previous = best ? best->fit.certificate.tv_bound : std::numeric_limits<double>::infinity();
     const bool stalled = r.certificate.tv_bound > 0.9 * previous, met = r.met;
-    if (r.certificate.tv_bound < previous) best = Round{std::move(table), heldout.paths, std::move(r)};
+    if (!best || r.certificate.tv_bound < previous) best = Round{std::move(table), heldout.paths, std::move(r)};
     if (!met && !stalled && paths < s.paths) continue;
     break;
   }

@@ -37,34 +37,56 @@ double StfModel::direction_pdf(int bin, const Vec3& w) const {
   return sh_table[bin * cells + equal_area_cell(sh_nz, w)];
 }
 
+namespace {
+
+// E[factor(w)] under a lobe: Gauss-Legendre over the lobe's own quantile of cos(theta) (so a
+// narrow lobe needs no finer rule than a broad one) times a uniform azimuth rule.
+template <typename Factor>
+double mean_under_lobe(const VmfLobe& l, Factor factor) {
+  constexpr int kPanels = 8, kAzimuths = 32;
+  Vec3 b1, b2;
+  orthonormal_basis(l.mean, b1, b2);
+  double sum = 0;
+  for (int p = 0; p < kPanels; ++p)
+    sum += gauss8(
+        [&](double u) {
+          const double c = sample_vmf_cos(l.kappa, u), s = std::sqrt(std::max(0.0, 1 - c * c));
+          double ring = 0;
+          for (int a = 0; a < kAzimuths; ++a) {
+            const double phi = 2 * kPi * (a + 0.5) / kAzimuths, x = s * std::cos(phi), y = s * std::sin(phi);
+            ring += factor(Vec3{x * b1.x + y * b2.x + c * l.mean.x, x * b1.y + y * b2.y + c * l.mean.y,
+                                x * b1.z + y * b2.z + c * l.mean.z});
+          }
+          return ring / kAzimuths;
+        },
+        double(p) / kPanels, double(p + 1) / kPanels);
+  return sum;
+}
+
+}  // namespace
+
 void StfModel::rebuild_lobe_norms() {
   lobe_norm.assign(vmf.size(), 1.0);
   if (!hemispherical || kind != ModelKind::kVmf) return;
-  // E[factor(w)] under each lobe: Gauss-Legendre over the lobe's own quantile of cos(theta)
-  // (so a narrow lobe needs no finer rule than a broad one) times a uniform azimuth rule.
-  constexpr int kPanels = 8, kAzimuths = 32;
-  for (int b = 0; b < bins(); ++b)
+  for (int b = 0; b < bins(); ++b) {
+    auto factor = [&](const Vec3& w) { return outward_factor(b, w); };
+    VmfLobe* l = &vmf[std::size_t(b) * lobes];
+    double* z = &lobe_norm[std::size_t(b) * lobes];
+    // A lobe turned wholly below the bin's tangent planes holds no density: it is dropped (its
+    // weight goes to the others), so no draw waits on it; a bin left with none is uniform.
+    double kept = 0;
     for (int k = 0; k < lobes; ++k) {
-      const std::size_t i = std::size_t(b) * lobes + k;
-      const VmfLobe& l = vmf[i];
-      Vec3 b1, b2;
-      orthonormal_basis(l.mean, b1, b2);
-      double sum = 0;
-      for (int p = 0; p < kPanels; ++p)
-        sum += gauss8(
-            [&](double u) {
-              const double c = sample_vmf_cos(l.kappa, u), s = std::sqrt(std::max(0.0, 1 - c * c));
-              double ring = 0;
-              for (int a = 0; a < kAzimuths; ++a) {
-                const double phi = 2 * kPi * (a + 0.5) / kAzimuths, x = s * std::cos(phi), y = s * std::sin(phi);
-                ring += outward_factor(b, {x * b1.x + y * b2.x + c * l.mean.x, x * b1.y + y * b2.y + c * l.mean.y,
-                                           x * b1.z + y * b2.z + c * l.mean.z});
-              }
-              return ring / kAzimuths;
-            },
-            double(p) / kPanels, double(p + 1) / kPanels);
-      lobe_norm[i] = std::max(sum, 1e-300);
+      z[k] = mean_under_lobe(l[k], factor);
+      if (!(z[k] > 1e-12)) l[k].weight = 0, z[k] = 1;
+      kept += l[k].weight;
     }
+    if (kept <= 0) {
+      l[0] = {1, 0, {0, 0, 1}};
+      z[0] = mean_under_lobe(l[0], factor);
+      kept = 1;
+    }
+    for (int k = 0; k < lobes; ++k) l[k].weight /= kept;
+  }
 }
 
 void StfModel::rebuild_sh_tables() {
