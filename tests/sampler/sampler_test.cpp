@@ -10,27 +10,13 @@
 #include "seed.h"
 #include "stf/vmf.h"
 #include "test_models.h"
+#include "test_numerics.h"
 
 namespace stf {
 namespace {
 
-struct Uniforms {
-  std::uint64_t state;
-  double operator()() { return double(splitmix64(state) >> 11) * 0x1p-53; }
-};
-
-// Composite Gauss-Legendre (8 points) of f over [a, b] in `panels` panels.
-template <typename F>
-double integrate(F f, double a, double b, int panels = 64) {
-  static const double x[4] = {0.1834346424956498, 0.5255324099163290, 0.7966664774136267, 0.9602898564975363};
-  static const double w[4] = {0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763};
-  double h = (b - a) / panels, s = 0;
-  for (int p = 0; p < panels; ++p) {
-    double mid = a + (p + 0.5) * h;
-    for (int i = 0; i < 4; ++i) s += w[i] * (f(mid - 0.5 * h * x[i]) + f(mid + 0.5 * h * x[i]));
-  }
-  return 0.5 * h * s;
-}
+using test::integrate;
+using test::Uniforms;
 
 // Directions binned around `axis`: t = 1 - cos(theta) in n_t bins on [0, t_max] (quadratic
 // spacing: finer near the axis) plus one tail bin, times n_phi azimuth bins.
