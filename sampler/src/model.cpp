@@ -72,12 +72,17 @@ void StfModel::rebuild_lobe_norms() {
     auto factor = [&](const Vec3& w) { return outward_factor(b, w); };
     VmfLobe* l = &vmf[std::size_t(b) * lobes];
     double* z = &lobe_norm[std::size_t(b) * lobes];
-    // A lobe turned wholly below the bin's tangent planes holds no density: it is dropped (its
-    // weight goes to the others), so no draw waits on it; a bin left with none is uniform.
+    // A lobe turned (all but a millionth of it) below the bin's tangent planes holds no
+    // density worth a draw that waits on it: it is dropped (its weight goes to the others) and
+    // made uniform, so that even a rounding that picks it terminates; a bin left with none is
+    // uniform.
     double kept = 0;
     for (int k = 0; k < lobes; ++k) {
       z[k] = mean_under_lobe(l[k], factor);
-      if (!(z[k] > 1e-12)) l[k].weight = 0, z[k] = 1;
+      if (!(z[k] > 1e-6)) {
+        l[k] = {0, 0, {0, 0, 1}};
+        z[k] = mean_under_lobe(l[k], factor);
+      }
       kept += l[k].weight;
     }
     if (kept <= 0) {
