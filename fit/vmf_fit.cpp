@@ -383,8 +383,9 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
 
 OutwardFactors outward_factors(const QuadratureLevels& levels, double a0, double a1) {
   OutwardFactors f;
+  const OutwardBin factor(a0, a1);
   for (int level = 0; level <= QuadratureLevels::kMaxLevel; ++level)
-    for (const Vec3& x : levels.at(level).point) f[std::size_t(level)].push_back(mean_exit_cosine(x, a0, a1));
+    for (const Vec3& x : levels.at(level).point) f[std::size_t(level)].push_back(factor(x));
   return f;
 }
 

@@ -20,7 +20,7 @@ int equal_area_cell(int nz, const Vec3& w) {
 }
 
 double StfModel::outward_factor(int bin, const Vec3& w) const {
-  return hemispherical ? mean_exit_cosine(w, alpha_edges[std::size_t(bin)], alpha_edges[std::size_t(bin) + 1]) : 1.0;
+  return hemispherical ? OutwardBin(alpha_edges[std::size_t(bin)], alpha_edges[std::size_t(bin) + 1])(w) : 1.0;
 }
 
 double StfModel::direction_pdf(int bin, const Vec3& w) const {
@@ -69,7 +69,7 @@ void StfModel::rebuild_lobe_norms() {
   lobe_norm.assign(vmf.size(), 1.0);
   if (!hemispherical || kind != ModelKind::kVmf) return;
   for (int b = 0; b < bins(); ++b) {
-    auto factor = [&](const Vec3& w) { return outward_factor(b, w); };
+    const OutwardBin factor(alpha_edges[std::size_t(b)], alpha_edges[std::size_t(b) + 1]);
     VmfLobe* l = &vmf[std::size_t(b) * lobes];
     double* z = &lobe_norm[std::size_t(b) * lobes];
     // A lobe turned (all but a millionth of it) below the bin's tangent planes holds no

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "stf/hemisphere.h"
 #include "stf/math.h"
 #include "stf/vmf.h"
 
@@ -21,6 +22,7 @@ ShellSampler::ShellSampler(StfModel model) : model_(std::move(model)) {
   for (double a : model_.alpha_edges) cos_edges_.push_back(std::cos(a));
   cos_edges_.front() = 1, cos_edges_.back() = -1;
   if (model_.hemispherical && model_.lobe_norm.size() != model_.vmf.size()) model_.rebuild_lobe_norms();
+  for (int b = 0; b < bins && model_.hemispherical; ++b) outward_.emplace_back(model_.alpha_edges[b], model_.alpha_edges[b + 1]);
   for (std::size_t i = 0; i < model_.vmf.size(); ++i) {
     const VmfLobe& l = model_.vmf[i];
     Lobe c;
@@ -61,7 +63,7 @@ double ShellSampler::direction_pdf(int bin, const Vec3& w) const {
   double p = 0;
   const Lobe* l = &lobes_[std::size_t(bin) * model_.lobes];
   for (int k = 0; k < model_.lobes; ++k) p += l[k].weight * lobe_pdf(l[k], w);
-  return model_.hemispherical ? p * model_.outward_factor(bin, w) : p;
+  return model_.hemispherical ? p * outward_[std::size_t(bin)](w) : p;
 }
 
 Vec3 ShellSampler::lobe_direction(const Lobe& l, double u, double v) const {
@@ -97,7 +99,8 @@ Vec3 ShellSampler::sample_direction(int bin, double u2, double u3) const {
     // The lobe times the bin's outward factor (<= 1): a lobe draw kept with that probability;
     // the acceptance and any retries come from a stream seeded from (u2, u3).
     RetryStream retry(u2, u3, 0.5, 0.25);
-    while (retry.uniform() >= model_.outward_factor(bin, w)) w = lobe_direction(l, retry.uniform(), retry.uniform());
+    const OutwardBin& factor = outward_[std::size_t(bin)];
+    while (retry.uniform() >= factor(w)) w = lobe_direction(l, retry.uniform(), retry.uniform());
     return w;
   }
   // Tabulated SH: a cell by mass, then uniform in the cell: uniform in z and phi is uniform

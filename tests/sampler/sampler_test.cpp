@@ -8,6 +8,7 @@
 #include "chi2.h"
 #include "rng.h"
 #include "seed.h"
+#include "stf/hemisphere.h"
 #include "stf/vmf.h"
 #include "test_models.h"
 #include "test_numerics.h"
@@ -283,6 +284,31 @@ TEST(Sampler, ExtremeUniformsStayFinite) {
             ASSERT_TRUE(std::isfinite(x.pdf) && x.pdf > 0);
             ASSERT_TRUE(std::isfinite(x.point.x + x.point.y + x.point.z + x.direction.x + x.direction.y + x.direction.z));
           }
+  }
+}
+
+// The outward factor of hemispherical lobes: its closed form against a plain average over the
+// bin's exit angles, and the trigonometry-free fast path against the closed form.
+TEST(Hemisphere, OutwardFactorIsTheMeanOutwardCosineOverTheBin) {
+  std::uint64_t seed = 91;
+  Uniforms u{seed};
+  for (auto [a0, a1] : {std::pair(0.0, 0.07), std::pair(0.6, 0.67), std::pair(1.0, 2.5), std::pair(0.0, kPi)}) {
+    const OutwardBin fast(a0, a1);
+    for (int i = 0; i < 2000; ++i) {
+      const double z = 2 * u() - 1, phi = 2 * kPi * u(), r = std::sqrt(1 - z * z);
+      const Vec3 w{r * std::cos(phi), r * std::sin(phi), z};
+      double mean = 0;
+      const int n = 4000;
+      for (int k = 0; k < n; ++k) {
+        const double a = a0 + (k + 0.5) / n * (a1 - a0);
+        mean += std::max(0.0, w.x * std::sin(a) + w.z * std::cos(a)) / n;
+      }
+      const double exact = mean_exit_cosine(w, a0, a1);
+      ASSERT_NEAR(exact, mean, 1e-6) << a0 << " " << a1;
+      ASSERT_NEAR(fast(w), exact, 1e-12) << a0 << " " << a1;
+      ASSERT_GE(exact, 0);
+      ASSERT_LE(exact, 1);
+    }
   }
 }
 

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "stf/alias.h"
+#include "stf/hemisphere.h"
 #include "stf/model.h"
 #include "stf/once_scattered.h"
 #include "stf/vec3.h"
@@ -96,6 +97,7 @@ class ShellSampler {
   std::vector<double> lobe_cdf_;   // vmf: [bins * lobes], running sums of each bin's weights
   std::vector<AliasTable> cells_;  // sh: per bin, over its equal-area cells
   OnceScattered once_;             // when the model has a once-scattered part
+  std::vector<OutwardBin> outward_;  // hemispherical lobes: each bin's outward factor
 };
 
 }  // namespace stf
