@@ -65,9 +65,9 @@ OnceScattered::OnceScattered(double tau, double g)
   cells_ = AliasTable(weight);
 }
 
-double OnceScattered::acceptance(double g) const {
+double OnceScattered::acceptance() const {
   // The bound's mass is tau e^{-tau} bound_mass_ (the weights are relative to e^{-tau}).
-  const double p = once_scattered_probability(tau_, g);
+  const double p = once_scattered_probability(tau_, hg_.g);
   return bound_mass_ > 0 && p > 0 ? std::min(1.0, p / (tau_ * std::exp(-tau_)) / bound_mass_) : 1;
 }
 

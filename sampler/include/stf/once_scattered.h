@@ -44,8 +44,8 @@ class OnceScattered {
   // u0 picks the cell (its remainder places s), u1 the azimuth, u2 places u and u3 accepts; a
   // rejected try continues with a stream seeded from the four numbers.
   void sample(double u0, double u1, double u2, double u3, Vec3& point, Vec3& direction) const;
-  // The share of tries that are accepted, for the medium's g (computed by quadrature).
-  double acceptance(double g) const;
+  // The share of tries that are accepted (by quadrature).
+  double acceptance() const;
 
   // The (s, u) grid: s edges crowd towards the centre, where paths scattered backwards in a
   // thick sphere collide, and towards the surface; u edges are uniform (HG's own measure).
