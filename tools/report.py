@@ -21,7 +21,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from stf_runs import Stf, power_law  # noqa: E402
 
-MODELS = [("vmf:1", ["--model", "vmf:1"]), ("vmf:4", ["--model", "vmf:4"]), ("sh:8", ["--model", "sh:8"]),
+MODELS = [("vmf:1", ["--model", "vmf:1"]), ("vmf:4", ["--model", "vmf:4"]), ("hvmf:4", ["--model", "hvmf:4"]),
+          ("sh:8", ["--model", "sh:8"]),
           ("sh:16 cheb8", ["--model", "sh:16", "--alpha-degree", "8"])]
 
 
