@@ -252,8 +252,12 @@ void run_python(const std::string& script, const std::vector<std::string>& args,
   int status = 0;
   while (::waitpid(pid, &status, WNOHANG) == 0) {
     if (interrupted) {
-      ::kill(pid, SIGTERM);
+      // The whole group: the script's own stf runs too, which would otherwise go on writing
+      // into the folders the caller is about to remove. Each cleans up and exits; wait (a few
+      // seconds at most) until none is left.
+      ::kill(-pid, SIGTERM);
       ::waitpid(pid, &status, 0);
+      for (int i = 0; i < 500 && ::kill(-pid, 0) == 0; ++i) ::usleep(10000);
       throw Interrupted();
     }
     ::usleep(20000);
