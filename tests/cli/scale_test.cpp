@@ -12,6 +12,10 @@ void expect_same_table(const std::string& a_path, const std::string& b_path) {
   stf::Table a = stf::read_table(a_path), b = stf::read_table(b_path);
   EXPECT_EQ(a.weight_half[0], b.weight_half[0]) << b_path;
   EXPECT_EQ(a.weight_half[1], b.weight_half[1]) << b_path;
+  // The singular parts' tallies too: MPI gathers the sparse once-scattered map, merge and
+  // resume add it.
+  EXPECT_EQ(a.once, b.once) << b_path;
+  EXPECT_EQ(a.uncollided_half, b.uncollided_half) << b_path;
   EXPECT_EQ(a.alpha_edges, b.alpha_edges);
   EXPECT_EQ(a.solid_angle, b.solid_angle);
   EXPECT_EQ(a.paths, b.paths);
@@ -56,6 +60,7 @@ TEST_F(Scale, MpiRanksWriteTheTableOfOneProcess) {
     Result r = mpi_stf(ranks, "precompute " + kMedium + "--paths 2e5 --seed 4 --threads 1 -o " + out(name));
     ASSERT_EQ(r.status, 0) << r.err;
     expect_same_table(out("one.h5"), out(name));
+    EXPECT_FALSE(stf::read_table(out(name)).once.empty());
   }
   // A scene's entries spread over ranks: the same pack.
   std::ofstream(out("scene.toml")) << "[settings]\npaths = 2e4\ngrid = \"healpix:2\"\nalpha_bins = 6\nmodel = \"vmf:1\"\n"
@@ -79,6 +84,7 @@ TEST_F(Scale, ThreeShardsMergeIntoTheTableOfOneRun) {
   Result r = stf("merge " + out("part2.h5") + " " + out("part0.h5") + " " + out("part1.h5") + " -o " + out("merged.h5"));
   ASSERT_EQ(r.status, 0) << r.err;
   expect_same_table(out("one.h5"), out("merged.h5"));
+  EXPECT_FALSE(stf::read_table(out("merged.h5")).once.empty());
 }
 
 TEST_F(Scale, MergeRefusesDuplicatesGapsAndForeignParts) {
