@@ -90,16 +90,6 @@ std::vector<double> smooth_cell_probabilities(const StfModel& m, int b, const Qu
   return density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, w); }, levels.at(2));
 }
 
-std::vector<double> model_cell_probabilities(const StfModel& m, int b, const QuadratureLevels& levels) {
-  std::vector<double> p = smooth_cell_probabilities(m, b, levels);
-  if (b != 0 || m.uncollided_fraction <= 0) return p;
-  // Bin 0 also holds the uncollided delta: exactly in the cell of +z.
-  const double share = m.uncollided_share_of_bin0();
-  for (double& x : p) x *= 1 - share;
-  p[std::size_t(levels.pole_cell())] += share;
-  return p;
-}
-
 BinnedModel::BinnedModel(const StfModel& model, const Table& reference, const DirectionGrid& grid)
     : model_(model), reference_(reference), group_(alpha_group_size(model.alpha_edges, reference)),
       pole_cell_(grid.cell({0, 0, 1})) {

@@ -41,9 +41,6 @@ double area_share(const Table& reference, int b, int f);
 // Per-cell probabilities of the fitted density of alpha bin b, integrated over the cells of the
 // grid whose quadratures `levels` holds (build them once for all bins); they sum to 1.
 std::vector<double> smooth_cell_probabilities(const StfModel& model, int bin, const QuadratureLevels& levels);
-// The same with bin 0's uncollided delta in the cell of +z: the distribution of a model bin's
-// escapes other than the once-scattered ones.
-std::vector<double> model_cell_probabilities(const StfModel& model, int bin, const QuadratureLevels& levels);
 
 // A model's exit distribution in a reference table's layout, bin by reference bin, every part in
 // its exact cells: the smooth part (model bins spread over the reference bins they group by

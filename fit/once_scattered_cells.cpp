@@ -62,12 +62,13 @@ double mu_towards(double c, double s) { return (c - s) / std::sqrt(std::max(1e-3
 OnceScatteredCells bin_once_scattered(double tau, double g, const std::vector<double>& alpha_edges,
                                       const DirectionGrid& grid) {
   const int bins = int(alpha_edges.size()) - 1;
-  const OnceScattered part(tau, g);
+  const HgParams<double> hg = HgParams<double>::make(g);
+  auto mu_of = [&](double u) { return sample_hg(hg, u).cos_theta; };  // HG's quantile
   const CirclePieces sides[2] = {circle_pieces(grid, 1e-300), circle_pieces(grid, -1e-300)};
   std::vector<double> cos_edges;  // increasing: bin bins - 1 first
   for (int b = bins; b >= 0; --b) cos_edges.push_back(std::cos(alpha_edges[std::size_t(b)]));
   std::vector<double> u_lines;  // where the integrand's scale is set: the sampler's u grid
-  for (double u : OnceScattered::u_edges()) u_lines.push_back(part.mu(u));
+  for (double u : OnceScattered::u_edges()) u_lines.push_back(mu_of(u));
 
   std::vector<std::map<std::int64_t, double>> mass(std::size_t(std::max(bins, 0)));
   std::vector<double> cuts;
@@ -86,7 +87,7 @@ OnceScatteredCells bin_once_scattered(double tau, double g, const std::vector<do
         const int bin = std::clamp(bins - 1 - from_top, 0, bins - 1);
         const std::size_t run = std::size_t(std::upper_bound(side.edge.begin(), side.edge.end(), mid) - side.edge.begin()) - 1;
         const double in_piece = gauss8(
-            [&](double u) { return std::exp(-tau * (s + exit_distance_from_axis(s, part.mu(u)) - 1)); },
+            [&](double u) { return std::exp(-tau * (s + exit_distance_from_axis(s, mu_of(u)) - 1)); },
             hg_cdf(g, lo), hg_cdf(g, hi));
         mass[std::size_t(bin)][side.cell_of[std::min(run, side.cell_of.size() - 1)]] += 0.5 * weight * in_piece;
       }

@@ -437,15 +437,15 @@ VmfFitResult fit_vmf_from(const std::vector<double>& counts, const QuadratureLev
 VmfFitResult fit_vmf(const std::vector<double>& counts, const QuadratureLevels& levels, int K,
                      const VmfFitOptions& options) {
   if (!options.outward) return solve(counts, levels, initial_lobes(counts, levels.at(0), K), options);
-  // Hemispherical lobes are multiplied by the outward factor: they start from the counts with
-  // that factor divided out (floored, so that grazing cells do not dominate), the shape the
-  // lobes themselves must take.
+  // Hemispherical lobes have more poor local optima than plain ones: K lobes grow from a fit of
+  // half as many (the heaviest split), down to two from k-means.
+  if (K > 2) return solve(counts, levels, grow_lobes(fit_vmf(counts, levels, (K + 1) / 2, options).lobes, K), options);
+  // They are multiplied by the outward factor, so they start from the counts with that factor
+  // divided out (floored, so that grazing cells do not dominate): the shape the lobes
+  // themselves must take.
   std::vector<double> lobe_counts(counts);
   const std::vector<double>& factor = (*options.outward)[0];
   for (std::size_t c = 0; c < lobe_counts.size(); ++c) lobe_counts[c] = factor[c] > 0 ? counts[c] / std::max(factor[c], 0.1) : 0.0;
-  // Their likelihood has more poor local optima than plain lobes': K lobes grow from a fit of
-  // half as many (the heaviest split), down to two from k-means.
-  if (K > 2) return solve(counts, levels, grow_lobes(fit_vmf(counts, levels, (K + 1) / 2, options).lobes, K), options);
   return solve(counts, levels, initial_lobes(lobe_counts, levels.at(0), K), options);
 }
 

@@ -41,7 +41,7 @@ void expect_sane(const StfModel& m, const char* what) {
   auto grid = make_grid("healpix:8");
   const QuadratureLevels levels(*grid);
   for (int b = 0; b < m.bins(); ++b) {
-    std::vector<double> p = model_cell_probabilities(m, b, levels);
+    std::vector<double> p = smooth_cell_probabilities(m, b, levels);
     double s = 0;
     for (double v : p) {
       ASSERT_TRUE(std::isfinite(v)) << what << " bin " << b;

@@ -48,9 +48,12 @@ StfModel lobe_model(const Table& t, double kappa_scale, double tilt) {
 std::vector<double> joint(const StfModel& m, const Table& t) {
   auto grid = make_grid(t.grid);
   const QuadratureLevels levels(*grid);
+  const BinnedModel binned(m, t, *grid);
   std::vector<double> p;
-  for (int b = 0; b < m.bins(); ++b)
-    for (double q : model_cell_probabilities(m, b, levels)) p.push_back(m.alpha_probability[b] * q);
+  for (int b = 0; b < t.alpha_bins; ++b) {
+    auto [probability, q] = binned.bin(b, smooth_cell_probabilities(m, b / binned.group(), levels));
+    for (double v : q) p.push_back(probability * v);
+  }
   return p;
 }
 
