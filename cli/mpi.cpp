@@ -81,13 +81,16 @@ void sum_to_root(Table& part) {
   sum_once_to_root(part.once);
   // Counts are whole numbers below 2^53 held in doubles: their sum is exact in any order.
   constexpr std::size_t kSlice = std::size_t(1) << 26;  // MPI counts are ints
-  for (std::vector<double>& half : part.weight_half)
-    for (std::size_t at = 0; at < half.size(); at += kSlice) {
-      int n = int(std::min(kSlice, half.size() - at));
+  std::vector<std::vector<double>*> arrays;
+  for (std::vector<double>& half : part.weight_half) arrays.push_back(&half);
+  for (std::vector<double>& half : part.multiple_sub_half) arrays.push_back(&half);
+  for (std::vector<double>* half : arrays)
+    for (std::size_t at = 0; at < half->size(); at += kSlice) {
+      int n = int(std::min(kSlice, half->size() - at));
       if (the_world.root())
-        MPI_Reduce(MPI_IN_PLACE, half.data() + at, n, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+        MPI_Reduce(MPI_IN_PLACE, half->data() + at, n, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
       else
-        MPI_Reduce(half.data() + at, nullptr, n, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+        MPI_Reduce(half->data() + at, nullptr, n, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
     }
   double totals[7] = {part.escaped_weight, part.absorbed_weight,  part.truncated_weight, double(part.paths),
                       part.runtime_s,      part.uncollided_half[0], part.uncollided_half[1]};

@@ -8,6 +8,7 @@
 
 #include "cell_probability.h"
 #include "grid.h"
+#include "stf/tilt.h"
 
 namespace stf::fit {
 
@@ -98,9 +99,13 @@ BinnedModel::BinnedModel(const StfModel& model, const Table& reference, const Di
 
 std::pair<double, std::vector<double>> BinnedModel::bin(int b, const std::vector<double>& smooth_cells) const {
   const double once = model_.once_fraction;
-  // The smooth part is spread over the reference bins of its group by area, as the sampler
-  // spreads alpha; the delta sits at alpha = 0, in reference bin 0 alone.
-  const double smooth = model_.smooth_probability(b / group_) * area_share(reference_, b, group_);
+  // The smooth part is spread over the reference bins of its group by its tilted density in
+  // area, as the sampler spreads alpha; the delta sits at alpha = 0, in reference bin 0 alone.
+  const int j = b / group_;
+  double below = 0;
+  for (int a = j * group_; a < b; ++a) below += area_share(reference_, a, group_);
+  const double smooth = model_.smooth_probability(j) *
+                        tilt_mass(model_.tilt(j), below, std::min(1.0, below + area_share(reference_, b, group_)));
   std::vector<double> p(smooth_cells.size());
   for (std::size_t c = 0; c < p.size(); ++c) p[c] = smooth * smooth_cells[c];
   double probability = smooth;

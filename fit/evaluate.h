@@ -44,7 +44,7 @@ std::vector<double> smooth_cell_probabilities(const StfModel& model, int bin, co
 
 // A model's exit distribution in a reference table's layout, bin by reference bin, every part in
 // its exact cells: the smooth part (model bins spread over the reference bins they group by
-// area, as a sampler spreads alpha), the uncollided delta in reference bin 0's cell of +z and
+// their tilted density in area, as a sampler spreads alpha), the uncollided delta in reference bin 0's cell of +z and
 // the once-scattered part binned exactly.
 class BinnedModel {
  public:

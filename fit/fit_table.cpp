@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "alpha_tilt.h"
 #include "cell_probability.h"
 #include "grid.h"
 #include "parallel.h"
@@ -402,6 +403,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   m.uncollided_fraction = escaped > 0 ? exact.uncollided * paths / escaped : 0;
   m.alpha_probability = escaped > 0 ? escapes : uniform_alpha(t.alpha_edges);
   for (double& p : m.alpha_probability) p /= escaped > 0 ? escaped : 1;
+  m.alpha_tilt = fit_alpha_tilts(t);
   if (s.kind == ModelKind::kVmf) {
     m.lobes = size;
     for (const auto& lobes : fits.lobes) m.vmf.insert(m.vmf.end(), lobes.begin(), lobes.end());

@@ -6,6 +6,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "alpha_tilt.h"
 #include "evaluate.h"
 #include "grid.h"
 #include "parallel.h"
@@ -96,6 +97,7 @@ Table coarsen_table(const Table& t, int f, int levels) {
     c.weight_half[h] = group_sums(t.weight_half[h], k, std::size_t(c.alpha_bins) * k.cells);
   c.once.clear();
   for (const auto& [key, w] : t.once) c.once[2 * std::uint64_t(k.group[key >> 1]) + (key & 1)] += w;
+  group_sub_bins(t, f, c);
   return c;
 }
 

@@ -77,6 +77,7 @@ void write_checkpoint(const std::string& path, const std::string& fingerprint, c
       const hsize_t bins = hsize_t(p.tally.alpha_bins), cells = hsize_t(p.tally.cells);
       put_rows(root, "counts", {2, bins, cells}, [&](hsize_t r) { return &p.tally.counts[r / bins][(r % bins) * cells]; });
       put_sparse_halves(root, "once", p.tally.alpha_bins, p.tally.cells, p.tally.once);
+      put_rows(root, "multiple_sub", {2, bins, hsize_t(kSubBins)}, [&](hsize_t r) { return &p.tally.multiple_sub[r / bins][(r % bins) * kSubBins]; });
     }
     if (std::rename(temp.c_str(), path.c_str()) != 0) throw std::runtime_error("cannot rename " + temp);
   } catch (const H5::Exception& e) {
@@ -108,6 +109,8 @@ Progress read_checkpoint(const std::string& path, const std::string& fingerprint
     get_rows(file, "/counts", {2, bins, hsize_t(cells)},
              [&](hsize_t r) { return &p.tally.counts[r / bins][(r % bins) * std::size_t(cells)]; });
     p.tally.once = get_sparse_halves(file, "/once", alpha_bins, cells);
+    get_rows(file, "/multiple_sub", {2, bins, hsize_t(kSubBins)},
+             [&](hsize_t r) { return &p.tally.multiple_sub[r / bins][(r % bins) * kSubBins]; });
     return p;
   } catch (const H5::Exception& e) {
     throw std::runtime_error("cannot read checkpoint " + path + ": " + e.getDetailMsg());
@@ -149,6 +152,9 @@ void add_part(Table& whole, const Table& p) {
   for (int h = 0; h < 2; ++h) whole.uncollided_half[h] += p.uncollided_half[h];
   for (const auto& [key, w] : p.once) whole.once[key] += w;
   whole.once_tallied = whole.once_tallied && p.once_tallied;
+  if (whole.sub_bins != p.sub_bins) throw std::invalid_argument("parts tally sub-bins differently (written by different stf versions)");
+  for (int h = 0; h < 2; ++h)
+    for (std::size_t i = 0; i < whole.multiple_sub_half[h].size(); ++i) whole.multiple_sub_half[h][i] += p.multiple_sub_half[h][i];
   whole.escaped_weight += p.escaped_weight;
   whole.absorbed_weight += p.absorbed_weight;
   whole.truncated_weight += p.truncated_weight;

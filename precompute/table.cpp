@@ -113,6 +113,11 @@ void write_table(const Table& t, const std::string& path) {
       put_sparse_halves(escape, "once_half", t.alpha_bins, t.cells, t.once);
       put_attr(file, "once_weight", t.once_weight());
     }
+    if (t.sub_bins > 0) {
+      if (!t.sub_edges.empty()) throw std::runtime_error("a coarsened table's sub-bins have no file form");
+      put_rows(escape, "multiple_sub_half", {2, bins, hsize_t(t.sub_bins)},
+               [&](hsize_t r) { return &t.multiple_sub_half[r / bins][(r % bins) * hsize_t(t.sub_bins)]; });
+    }
     put_rows(escape, "weight_half", {2, bins, cells},
              [&](hsize_t r) { return &t.weight_half[r / bins][(r % bins) * cells]; });
     put_dataset(escape, "alpha_edges", {bins + 1}, t.alpha_edges.data());
@@ -124,6 +129,37 @@ void write_table(const Table& t, const std::string& path) {
     throw std::runtime_error("cannot write " + path + ": " + e.getDetailMsg());
   }
 }
+
+namespace {
+
+// The sub-bin tallies must add up, per half and alpha bin, to the bin's escapes less those
+// after fewer than two collisions (all whole numbers).
+std::string multiple_sub_error(const Table& t) {
+  if (t.sub_bins == 0) return "";
+  if (t.sub_bins < 1 || !t.once_tallied || t.uncollided_half[0] < 0)
+    return "/escape/multiple_sub_half needs /escape/once_half and /escape/uncollided_half";
+  const std::size_t cells = std::size_t(t.cells), subs = std::size_t(t.sub_bins);
+  std::vector<double> fewer(2 * std::size_t(t.alpha_bins), 0.0);  // [half * bins + bin]
+  for (const auto& [key, w] : t.once) fewer[(key & 1) * std::size_t(t.alpha_bins) + (key >> 1) / cells] += w;
+  for (int h = 0; h < 2; ++h) {
+    fewer[std::size_t(h) * std::size_t(t.alpha_bins)] += t.uncollided_half[std::size_t(h)];
+    for (int b = 0; b < t.alpha_bins; ++b) {
+      double escapes = 0, multiple = 0;
+      for (std::size_t c = 0; c < cells; ++c) escapes += t.weight_half[std::size_t(h)][std::size_t(b) * cells + c];
+      for (std::size_t k = 0; k < subs; ++k) {
+        const double w = t.multiple_sub_half[std::size_t(h)][std::size_t(b) * subs + k];
+        if (!(std::isfinite(w) && w >= 0)) return "/escape/multiple_sub_half holds a negative or non-finite weight";
+        multiple += w;
+      }
+      if (std::abs(escapes - fewer[std::size_t(h) * std::size_t(t.alpha_bins) + std::size_t(b)] - multiple) > 1e-6 * (1 + escapes))
+        return "/escape/multiple_sub_half of alpha bin " + std::to_string(b) +
+               " does not sum to its escapes after two or more collisions";
+    }
+  }
+  return "";
+}
+
+}  // namespace
 
 std::string table_error(const Table& t) {
   const Medium& m = t.medium;
@@ -154,6 +190,7 @@ std::string table_error(const Table& t) {
     if (i >= std::uint64_t(t.alpha_bins) * std::uint64_t(t.cells) || !count(w) || w > t.weight_half[key & 1][i])
       return "/escape/once_half holds a weight that is negative, not finite or above the cell's escaped weight";
   }
+  if (std::string why = multiple_sub_error(t); !why.empty()) return why;
   const auto& e = t.alpha_edges;
   if (e.front() != 0 || std::abs(e.back() - kPi) > 1e-12) return "/escape/alpha_edges must run from 0 to pi";
   for (std::size_t b = 0; b + 1 < e.size(); ++b)
@@ -214,6 +251,15 @@ Table read_table(const std::string& path) {
     }
     t.once_tallied = file.nameExists("/escape/once_half");
     if (t.once_tallied) t.once = get_sparse_halves(file, "/escape/once_half", t.alpha_bins, t.cells);
+    if (file.nameExists("/escape/multiple_sub_half")) {
+      std::vector<hsize_t> sub = dataset_shape(file, "/escape/multiple_sub_half");
+      if (sub.size() != 3 || sub[0] != 2 || sub[1] != dims[0] || sub[2] < 1 || sub[2] > 1024)
+        throw std::runtime_error("/escape/multiple_sub_half is not [2, alpha_bins, sub_bins]");
+      t.sub_bins = int(sub[2]);
+      for (auto& half : t.multiple_sub_half) half.resize(dims[0] * sub[2]);
+      get_rows(file, "/escape/multiple_sub_half", {2, dims[0], sub[2]},
+               [&](hsize_t r) { return &t.multiple_sub_half[r / dims[0]][(r % dims[0]) * sub[2]]; });
+    }
     t.solid_angle = get_dataset(file, "/grid/solid_angle", {dims[1]});
     std::vector<double> dir = get_dataset(file, "/grid/direction", {dims[1], 3});
     t.direction.resize(dims[1]);

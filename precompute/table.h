@@ -47,6 +47,18 @@ struct Table {
   std::map<std::uint64_t, double> once;
   bool once_tallied = true;
   double once_weight() const;
+  // Escapes after two or more collisions per half, alpha bin and sub-bin, [alpha_bins *
+  // sub_bins]: how their density varies inside each alpha bin (in weight_half too). Sub-bin k
+  // of bin b covers the area fractions u in [sub_edges[b (sub_bins + 1) + k], .. + k + 1] of
+  // the bin, from its lower alpha edge; empty sub_edges: sub_bins equal parts. Stored as
+  // /escape/multiple_sub_half [2, alpha_bins, sub_bins]; sub_bins is 0 for tables written
+  // before stf tallied them.
+  int sub_bins = 0;
+  std::array<std::vector<double>, 2> multiple_sub_half;
+  std::vector<double> sub_edges;
+  double sub_edge(int b, int k) const {
+    return sub_edges.empty() ? double(k) / sub_bins : sub_edges[std::size_t(b) * std::size_t(sub_bins + 1) + std::size_t(k)];
+  }
   std::int64_t collisions = 0;  // scattering and absorption events over all paths
   // Which chunks of the run's deterministic chunk stream the table holds: [chunk_first,
   // chunk_last) of chunk_count, for a run of run_paths paths. A part (stf precompute --shard)

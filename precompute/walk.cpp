@@ -13,6 +13,7 @@ namespace stf {
 
 Tally::Tally(int bins, std::int64_t n_cells) : cells(n_cells), alpha_bins(bins) {
   for (auto& c : counts) c.assign(std::size_t(bins) * std::size_t(n_cells), 0);
+  for (auto& m : multiple_sub) m.assign(std::size_t(bins) * kSubBins, 0);
 }
 
 void ChunkTally::add_to(Tally& tally) const {
@@ -26,6 +27,7 @@ void ChunkTally::add_to(Tally& tally) const {
   }
   for (int h = 0; h < 2; ++h) tally.uncollided[h] += uncollided[h];
   for (std::uint64_t i : once) tally.once[i] += 1;
+  for (std::uint32_t i : multiple_sub) tally.multiple_sub[i & 1][i >> 1] += 1;
   tally.escaped += escaped;
   tally.absorbed += absorbed;
   tally.truncated += truncated;
@@ -35,6 +37,7 @@ void ChunkTally::add_to(Tally& tally) const {
 void ChunkTally::clear() {
   escapes.clear();
   once.clear();
+  multiple_sub.clear();
   uncollided[0] = uncollided[1] = 0;
   escaped = absorbed = truncated = collisions = 0;
 }
@@ -65,6 +68,11 @@ void AlphaBins::bins(const double* cos_alpha, int* out, int count) const {
     b += int((b < n - 1) & (z < edge[b + 1]));
     out[i] = b;
   }
+}
+
+int AlphaBins::sub_bin(double cos_alpha, int b) const {
+  const double u = (cos_edges_[std::size_t(b)] - cos_alpha) / (cos_edges_[std::size_t(b)] - cos_edges_[std::size_t(b) + 1]);
+  return std::clamp(int(u * kSubBins), 0, kSubBins - 1);
 }
 
 std::int64_t chunk_paths(std::int64_t paths) {
@@ -193,7 +201,7 @@ class EscapeBatch {
     dx_[n_] = L.from_wx[i], dy_[n_] = L.from_wy[i], dz_[n_] = L.from_wz[i];
     half_[n_] = int(L.path[i] & 1);
     mirror_[n_] = int((L.path[i] >> 1) & 1);
-    once_[n_] = L.collisions[i] == 1;
+    collisions_[n_] = int(std::min<std::uint32_t>(L.collisions[i], 2));
     if (L.collisions[i] == 0) ++tally_.uncollided[half_[n_]];
     if (++n_ == kSize) flush();
   }
@@ -221,7 +229,9 @@ class EscapeBatch {
     for (int j = 0; j < n_; ++j) {
       const std::uint64_t index = 2 * (std::uint64_t(bin_[j]) * cells + std::uint64_t(cell_[j])) + std::uint64_t(half_[j]);
       tally_.escapes.push_back(index);
-      if (once_[j]) tally_.once.push_back(index);
+      if (collisions_[j] == 1) tally_.once.push_back(index);
+      if (collisions_[j] == 2)
+        tally_.multiple_sub.push_back(std::uint32_t(2 * (bin_[j] * kSubBins + alpha_.sub_bin(z_[j], bin_[j])) + half_[j]));
     }
     n_ = 0;
   }
@@ -233,7 +243,7 @@ class EscapeBatch {
   ChunkTally& tally_;
   int n_ = 0;
   double x_[kSize], y_[kSize], z_[kSize], dx_[kSize], dy_[kSize], dz_[kSize];
-  int half_[kSize], mirror_[kSize], once_[kSize], bin_[kSize];
+  int half_[kSize], mirror_[kSize], collisions_[kSize], bin_[kSize];  // collisions: 0, 1 or 2 (two or more)
   std::int64_t cell_[kSize];
 };
 

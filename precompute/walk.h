@@ -27,6 +27,10 @@ struct WalkSetup {
   const DirectionGrid* grid = nullptr;
 };
 
+// Equal parts of an alpha bin's area, in which the walk also counts the escapes after two or
+// more collisions: enough to fit how their density varies inside the bin (fit/alpha_tilt.h).
+inline constexpr int kSubBins = 8;
+
 // Linear alpha bins on [0, pi], looked up by cos(alpha) (no inverse trigonometry per escape).
 class AlphaBins {
  public:
@@ -37,6 +41,9 @@ class AlphaBins {
   int bin(double cos_alpha) const;
   // bin() of `count` values at once.
   void bins(const double* cos_alpha, int* out, int count) const;
+  // Which of the kSubBins equal-area parts of bin b holds cos(alpha), counted from the bin's
+  // lower alpha edge.
+  int sub_bin(double cos_alpha, int b) const;
 
  private:
   std::vector<double> cos_edges_;  // decreasing, cos(pi b / n)
@@ -54,6 +61,8 @@ struct Tally {
   // half. Their directions lie in the plane y' = 0, so few cells hold any: a sparse map keeps
   // a fine grid's table at one dense copy.
   std::map<std::uint64_t, double> once;
+  // Escapes after two or more collisions per half, [alpha_bins * kSubBins] (in counts too).
+  std::vector<double> multiple_sub[2];
   std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0;
 
   Tally(int alpha_bins, std::int64_t cells);
@@ -65,6 +74,7 @@ struct Tally {
 struct ChunkTally {
   std::vector<std::uint64_t> escapes;
   std::vector<std::uint64_t> once;  // the escapes after exactly one collision, again
+  std::vector<std::uint32_t> multiple_sub;  // the others, as 2 (bin kSubBins + sub-bin) + half
   std::uint64_t uncollided[2] = {0, 0};
   std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0;
 

@@ -8,6 +8,7 @@
 #include "stf/pack.h"
 #include "stf/quadrature.h"
 #include "stf/sh.h"
+#include "stf/tilt.h"
 
 namespace stf {
 
@@ -148,6 +149,9 @@ std::string model_error(const StfModel& m) {
   }
   if (std::abs(total - 1) > 1e-6) return "alpha probabilities do not sum to 1";
   if (!finite_in(m.once_fraction, 0, 1)) return "once-scattered fraction must be in [0, 1]";
+  if (!m.alpha_tilt.empty() && int(m.alpha_tilt.size()) != bins) return "alpha tilts of the wrong count";
+  for (double t : m.alpha_tilt)
+    if (!finite_in(t, -kMaxTilt, kMaxTilt)) return "alpha tilt out of range [-40, 40]";
   if (!finite_in(m.uncollided_fraction, 0, m.alpha_probability[0] * (1 + 1e-9)))
     return "uncollided fraction must be in [0, alpha probability of bin 0]";
   if (m.kind == ModelKind::kVmf) {

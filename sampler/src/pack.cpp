@@ -6,6 +6,7 @@
 #include <iterator>
 
 #include "stf/sh.h"
+#include "stf/tilt.h"
 
 namespace stf {
 
@@ -88,7 +89,7 @@ bool little_endian() {
 std::int64_t record_bytes(const StfModel& m, std::size_t name_bytes) {
   const int kind = m.kind == ModelKind::kVmf ? 0 : 1;
   const std::uint32_t size = kind == 0 ? std::uint32_t(m.lobes) : std::uint32_t(m.band_limit);
-  std::size_t n = 4 + 4 + pad4(name_bytes) + 6 * 4 + 8 * 8 + 4 * std::size_t(m.bins()) + pad4(std::size_t(m.bins()));
+  std::size_t n = 4 + 4 + pad4(name_bytes) + 6 * 4 + 8 * 8 + 2 * 4 * std::size_t(m.bins()) + pad4(std::size_t(m.bins()));
   return std::int64_t(n + 4 * parameter_count(kind, std::uint32_t(m.bins()), size, m.alpha_degree));
 }
 
@@ -112,6 +113,7 @@ std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries) {
     for (double p : m.alpha_probability) payload.put(float(p));
     for (BinStatus s : m.status) payload.put(std::uint8_t(s));
     payload.align4();
+    for (int b = 0; b < m.bins(); ++b) payload.put(float(m.tilt(b)));
     if (kind == 0) {
       for (const VmfLobe& l : m.vmf)
         for (double v : {l.weight, l.kappa, std::atan2(std::hypot(l.mean.x, l.mean.y), l.mean.z), std::atan2(l.mean.y, l.mean.x)})
@@ -158,7 +160,8 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
   if (kind == 1 && (size > 64 || nz < 1 || nz > 256 || degree < -1 || degree > 64 ||
                     std::size_t(bins) * nz * nz * 2 > (std::size_t(1) << 27)))
     return fail(error, "SH band limit, table size or alpha degree out of range");
-  if (std::int64_t(record) != std::int64_t(4 + 4 + pad4(name_bytes) + 6 * 4 + doubles * 8 + 4 * std::size_t(bins) + pad4(bins) +
+  const std::size_t per_bin = version >= 4 ? 8 : 4;  // alpha probability, and tilt from version 4
+  if (std::int64_t(record) != std::int64_t(4 + 4 + pad4(name_bytes) + 6 * 4 + doubles * 8 + per_bin * std::size_t(bins) + pad4(bins) +
                                             4 * parameter_count(int(kind), bins, size, kind == 1 ? degree : -1, version)))
     return fail(error, "model record size does not match its contents");
 
@@ -194,6 +197,11 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
     m.status.push_back(BinStatus(s));
   }
   r.skip(pad4(bins) - bins);
+  for (std::uint32_t b = 0; b < bins && version >= 4; ++b) {
+    const double t = r.get<float>();
+    if (!(std::abs(t) <= kMaxTilt)) return fail(error, "alpha tilt out of range");
+    m.alpha_tilt.push_back(t);
+  }
   if (kind == 0) {
     m.lobes = int(size);
     for (std::size_t i = 0; i < std::size_t(bins) * size; ++i) {

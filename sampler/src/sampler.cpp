@@ -5,6 +5,7 @@
 
 #include "stf/hemisphere.h"
 #include "stf/math.h"
+#include "stf/tilt.h"
 #include "stf/vmf.h"
 
 namespace stf {
@@ -139,7 +140,7 @@ ExitSample ShellSampler::draw(double u0, double u1, double u2, double u3, int& b
     remainder = std::min((remainder - share) / (1 - share), 1.0);
   }
   double c0 = cos_edges_[bin], c1 = cos_edges_[bin + 1];
-  double cos_alpha = c0 + remainder * (c1 - c0), sin_alpha = std::sqrt(std::max(0.0, 1 - cos_alpha * cos_alpha));
+  double cos_alpha = c0 + tilt_quantile(model_.tilt(bin), remainder) * (c1 - c0), sin_alpha = std::sqrt(std::max(0.0, 1 - cos_alpha * cos_alpha));
   double cb, sb;
   sincos_2pi(u1, sb, cb);  // beta = 2 pi u1
   local = sample_direction(bin, u2, u3);
@@ -152,18 +153,22 @@ ExitSample ShellSampler::sample(double u0, double u1, double u2, double u3) cons
   int bin;
   Vec3 local;
   ExitSample s = draw(u0, u1, u2, u3, bin, local);
-  if (bin >= 0)
-    s.pdf = model_.smooth_probability(bin) / (2 * kPi * (cos_edges_[bin] - cos_edges_[bin + 1])) * direction_pdf(bin, local);
+  if (bin >= 0) s.pdf = point_density(bin, s.point.z) * direction_pdf(bin, local);
   return s;
 }
 
 double ShellSampler::pdf(const Vec3& point, const Vec3& direction) const {
   int bin = alpha_bin_of(std::clamp(point.z, -1.0, 1.0));
-  double c0 = cos_edges_[bin], c1 = cos_edges_[bin + 1];
   double rho = std::sqrt(point.x * point.x + point.y * point.y);
   double cb = rho > 0 ? point.x / rho : 1, sb = rho > 0 ? point.y / rho : 0;
   Vec3 local = rotate_z(direction, cb, -sb);
-  return model_.smooth_probability(bin) / (2 * kPi * (c0 - c1)) * direction_pdf(bin, local);
+  return point_density(bin, point.z) * direction_pdf(bin, local);
+}
+
+double ShellSampler::point_density(int bin, double cos_alpha) const {
+  const double c0 = cos_edges_[bin], c1 = cos_edges_[bin + 1];
+  const double u = std::clamp((c0 - cos_alpha) / (c0 - c1), 0.0, 1.0);
+  return model_.smooth_probability(bin) / (2 * kPi * (c0 - c1)) * tilt_density(model_.tilt(bin), u);
 }
 
 namespace {

@@ -16,6 +16,8 @@ void expect_same_table(const std::string& a_path, const std::string& b_path) {
   // resume add it.
   EXPECT_EQ(a.once, b.once) << b_path;
   EXPECT_EQ(a.uncollided_half, b.uncollided_half) << b_path;
+  EXPECT_EQ(a.sub_bins, b.sub_bins) << b_path;
+  EXPECT_EQ(a.multiple_sub_half, b.multiple_sub_half) << b_path;
   EXPECT_EQ(a.alpha_edges, b.alpha_edges);
   EXPECT_EQ(a.solid_angle, b.solid_angle);
   EXPECT_EQ(a.paths, b.paths);

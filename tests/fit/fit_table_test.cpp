@@ -8,12 +8,15 @@
 #include <cmath>
 #include <cstdio>
 
+#include "alpha_tilt.h"
 #include "evaluate.h"
 #include "grid.h"
 #include "model_io.h"
 #include "precompute.h"
 #include "rng.h"
 #include "stf/once_scattered.h"
+#include "stf/tilt.h"
+#include "tolerance.h"
 
 namespace stf::fit {
 namespace {
@@ -177,20 +180,79 @@ TEST(FitTable, OnceScatteredEscapesAreAnExactPartNotFitted) {
 
 // Tables written before the once-scattered escapes were tallied apart still fit, as before:
 // with no once-scattered part and the tallied uncollided share.
+// The tilt's maximum likelihood from sub-bin counts: exact on expected counts; on multinomial
+// counts within 4.5 standard errors (Fisher information) of the truth.
+TEST(AlphaTilt, FitRecoversTheTilt) {
+  const std::vector<double> edges = {0, 0.1, 0.25, 0.3, 0.5, 0.8, 1};  // unequal parts
+  std::uint64_t state = 91;
+  for (double tilt : {-6.0, -0.8, 0.0, 0.4, 3.0}) {
+    std::vector<double> p, expected;
+    for (std::size_t k = 0; k + 1 < edges.size(); ++k) p.push_back(tilt_mass(tilt, edges[k], edges[k + 1]));
+    for (double q : p) expected.push_back(1e4 * q);
+    EXPECT_NEAR(tilt_from_counts(edges, expected), tilt, 1e-5);
+    const double n = 2000;
+    std::vector<double> counts(p.size(), 0.0);
+    for (int i = 0; i < int(n); ++i) {
+      double u = double(splitmix64(state) >> 11) * 0x1p-53, below = 0;
+      std::size_t k = 0;
+      while (k + 1 < p.size() && u >= below + p[k]) below += p[k++];
+      counts[k] += 1;
+    }
+    const double h = 1e-4;
+    double information = 0;
+    for (std::size_t k = 0; k < p.size(); ++k) {
+      const double score = (std::log(tilt_mass(tilt + h, edges[k], edges[k + 1])) -
+                            std::log(tilt_mass(tilt - h, edges[k], edges[k + 1]))) / (2 * h);
+      information += n * p[k] * score * score;
+    }
+    EXPECT_NEAR(tilt_from_counts(edges, counts), tilt, 4.5 / std::sqrt(information)) << tilt;
+  }
+  EXPECT_EQ(tilt_from_counts(edges, std::vector<double>(6, 0.0)), 0);
+  EXPECT_NEAR(tilt_from_counts(edges, {5, 0, 0, 0, 0, 0}), -kMaxTilt, 1e-3);  // all at the lower edge
+}
+
+// Grouping bins keeps every sub-bin count and turns its edges into fractions of the group.
+TEST(AlphaTilt, GroupedBinsKeepTheirSubBins) {
+  Table t = make_table({3, 0.3, 0.9, 1}, 100000, "healpix:2", 18);
+  ASSERT_GT(t.sub_bins, 0);
+  Table c = coarsen_table(t, 3, 0);
+  ASSERT_EQ(c.sub_bins, 3 * t.sub_bins);
+  for (int h = 0; h < 2; ++h) {
+    double a = 0, b = 0;
+    for (double v : t.multiple_sub_half[h]) a += v;
+    for (double v : c.multiple_sub_half[h]) b += v;
+    EXPECT_EQ(a, b);
+  }
+  for (int j = 0; j < c.alpha_bins; ++j) {
+    EXPECT_EQ(c.sub_edge(j, 0), 0);
+    EXPECT_NEAR(c.sub_edge(j, c.sub_bins), 1, 1e-12);
+    for (int k = 0; k < c.sub_bins; ++k) EXPECT_LT(c.sub_edge(j, k), c.sub_edge(j, k + 1));
+    // The second fine bin starts where the first one's area ends.
+    EXPECT_NEAR(c.sub_edge(j, t.sub_bins), area_share(t, 3 * j, 3), 1e-12);
+  }
+  // Tilts of the grouped table: forward scattering crowds each group towards its lower edge.
+  std::vector<double> tilts = fit_alpha_tilts(c);
+  ASSERT_EQ(int(tilts.size()), c.alpha_bins);
+  EXPECT_LT(tilts[0], 0);
+}
+
 TEST(FitTable, TablesWithoutTheOnceScatteredTallyStillFit) {
   Table t = make_table({0.9, 0.1, 0.3, 1}, 20000);
   const std::string path = ::testing::TempDir() + "/stf_old_table_" + std::to_string(::getpid()) + ".h5";
   write_table(t, path);
   {
     H5::H5File f(path, H5F_ACC_RDWR);
-    f.unlink("/escape/once_half");
+    f.unlink("/escape/once_half");  // tables before the once-scattered tally had no sub-bins either
+    f.unlink("/escape/multiple_sub_half");
   }
   Table old = read_table(path);
   std::remove(path.c_str());
   EXPECT_FALSE(old.once_tallied);
   EXPECT_TRUE(old.once.empty());
+  EXPECT_EQ(old.sub_bins, 0);
   StfModel m = fit_table(old, parse_model_spec("vmf:2"));
   EXPECT_EQ(m.once_fraction, 0);
+  EXPECT_TRUE(m.alpha_tilt.empty());
   EXPECT_DOUBLE_EQ(m.escape_probability, old.escaped_weight / double(old.paths));
   EXPECT_DOUBLE_EQ(m.uncollided_fraction, (old.uncollided_half[0] + old.uncollided_half[1]) / old.escaped_weight);
 }

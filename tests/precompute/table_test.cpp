@@ -29,6 +29,8 @@ TEST(Table, WriteReadRoundTripIsExact) {
   EXPECT_EQ(r.grid, "csc:4");
   EXPECT_EQ(r.weight_half[0], t.weight_half[0]);
   EXPECT_EQ(r.weight_half[1], t.weight_half[1]);
+  EXPECT_EQ(r.sub_bins, t.sub_bins);
+  EXPECT_EQ(r.multiple_sub_half, t.multiple_sub_half);
   EXPECT_EQ(r.alpha_edges, t.alpha_edges);
   EXPECT_EQ(r.solid_angle, t.solid_angle);
   EXPECT_EQ(r.direction, t.direction);
@@ -36,6 +38,20 @@ TEST(Table, WriteReadRoundTripIsExact) {
   EXPECT_EQ(r.truncated_weight, t.truncated_weight);
   EXPECT_EQ(r.collisions, t.collisions);
   EXPECT_EQ(r.generator, t.generator);
+}
+
+// The sub-bin tallies must add up to each bin's escapes after two or more collisions.
+TEST(Table, InconsistentSubBinsAreRefused) {
+  PrecomputeSettings s;
+  s.paths = 20'000;
+  s.alpha_bins = 6;
+  s.grid = "healpix:1";
+  Table t = *precompute({2, 0.5, 0.5, 1}, s);
+  EXPECT_EQ(table_error(t), "");
+  t.multiple_sub_half[1][3] += 1;
+  EXPECT_NE(table_error(t).find("multiple_sub_half"), std::string::npos) << table_error(t);
+  t.multiple_sub_half[1][3] = -1;
+  EXPECT_NE(table_error(t).find("multiple_sub_half"), std::string::npos) << table_error(t);
 }
 
 TEST(Table, ReadingANonTableFails) {

@@ -271,6 +271,47 @@ TEST(Walk, OnceScatteredEscapesAreTalliedApart) {
   }
 }
 
+// The escapes after two or more collisions, counted in equal-area parts of coarse alpha bins,
+// against an independent table (another seed) with 240 linear alpha bins. A fine bin lies in
+// one part or straddles a part's edge; a part's count must lie between what the fine bins
+// inside it and those touching it give, within 4.5 standard deviations of the two counts.
+TEST(Walk, SubBinsMatchAFinerTable) {
+  PrecomputeSettings s;
+  s.paths = 1'000'000;
+  s.grid = "healpix:1";
+  s.seed = test::test_seed(37);
+  SCOPED_TRACE(test::seed_trace(std::uint64_t(s.seed)));
+  const Medium m{2.7, 0.3, 0.8, 1};
+  s.alpha_bins = 3;
+  const Table coarse = run(m, s);
+  EXPECT_EQ(table_error(coarse), "");
+  ASSERT_EQ(coarse.sub_bins, kSubBins);
+  s.alpha_bins = 240;
+  s.seed += 1;
+  const Table fine = run(m, s);
+  // Per fine bin: escapes less the once-scattered and uncollided ones.
+  std::vector<double> multiple = alpha_marginal(fine);
+  for (const auto& [key, w] : fine.once) multiple[std::size_t((key >> 1) / std::uint64_t(fine.cells))] -= w;
+  multiple[0] -= fine.uncollided_half[0] + fine.uncollided_half[1];
+  const double n = double(s.paths);
+  for (int b = 0; b < coarse.alpha_bins; ++b)
+    for (int k = 0; k < kSubBins; ++k) {
+      const double c0 = std::cos(coarse.alpha_edges[b]), c1 = std::cos(coarse.alpha_edges[b + 1]);
+      const double hi = c0 - (c0 - c1) * k / kSubBins, lo = c0 - (c0 - c1) * (k + 1) / kSubBins;  // cos(alpha)
+      double inside = 0, touching = 0;
+      for (int j = 0; j < fine.alpha_bins; ++j) {
+        const double f0 = std::cos(fine.alpha_edges[j]), f1 = std::cos(fine.alpha_edges[j + 1]);
+        if (f1 >= lo - 1e-12 && f0 <= hi + 1e-12) inside += multiple[j];
+        else if (f1 < hi && f0 > lo) touching += multiple[j];
+      }
+      const double count = coarse.multiple_sub_half[0][std::size_t(b * kSubBins + k)] +
+                           coarse.multiple_sub_half[1][std::size_t(b * kSubBins + k)];
+      const double sigma = std::sqrt(count + inside + touching);
+      EXPECT_GE(count, inside - 4.5 * sigma) << "bin " << b << " part " << k;
+      EXPECT_LE(count, inside + touching + 4.5 * sigma) << "bin " << b << " part " << k;
+    }
+}
+
 // Only tau = sigma_t r matters. Scaling by 2 keeps tau bit-identical, and so the table; a
 // factor 3 changes tau in its last bit, so the tables agree in distribution only.
 TEST(Walk, ScaleInvariance) {
@@ -304,6 +345,7 @@ TEST(Walk, SameSeedSameTableForAnyThreadCount) {
   for (std::size_t i = 1; i < tables.size(); ++i) {
     EXPECT_EQ(tables[i].weight_half[0], tables[0].weight_half[0]);
     EXPECT_EQ(tables[i].weight_half[1], tables[0].weight_half[1]);
+    EXPECT_EQ(tables[i].multiple_sub_half, tables[0].multiple_sub_half);
     EXPECT_EQ(tables[i].absorbed_weight, tables[0].absorbed_weight);
     EXPECT_EQ(tables[i].collisions, tables[0].collisions);
   }
@@ -329,6 +371,17 @@ TEST(Walk, ValidateNamesTheOption) {
   PrecomputeSettings bad = ok;
   bad.grid = "csc:0";
   EXPECT_NE(validate({1, 0, 0, 1}, bad)->find("--grid"), std::string::npos);
+}
+
+TEST(AlphaBins, SubBinsAreEqualAreaParts) {
+  const AlphaBins bins(5);
+  const double c0 = std::cos(kPi / 5), c1 = std::cos(2 * kPi / 5);
+  for (int k = 0; k < kSubBins; ++k) {
+    EXPECT_EQ(bins.sub_bin(c0 - (c0 - c1) * (k + 0.01) / kSubBins, 1), k);
+    EXPECT_EQ(bins.sub_bin(c0 - (c0 - c1) * (k + 0.99) / kSubBins, 1), k);
+  }
+  EXPECT_EQ(bins.sub_bin(c0, 1), 0);
+  EXPECT_EQ(bins.sub_bin(c1, 1), kSubBins - 1);
 }
 
 TEST(AlphaBins, MatchesLinearBinsInAlpha) {

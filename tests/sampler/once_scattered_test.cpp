@@ -111,8 +111,8 @@ TEST(OnceScattered, SamplerMatchesTheExactBinningChiSquare) {
 
 // All three parts through ShellSampler: the smooth part (vMF), the uncollided delta and the
 // once-scattered part, against the model binned like a table, at the model's alpha bins and at
-// 3x finer ones (as a tolerance fit's model is evaluated: the smooth part spread by area, the
-// delta in the first fine bin alone).
+// 3x finer ones (as a tolerance fit's model is evaluated: the smooth part spread by its tilted
+// density in area, the delta in the first fine bin alone).
 TEST(OnceScattered, FullSamplerWithEveryPartMatchesTheBinnedModelChiSquare) {
   const std::uint64_t seed = test::test_seed(82);
   SCOPED_TRACE(test::seed_trace(seed));
@@ -120,6 +120,7 @@ TEST(OnceScattered, FullSamplerWithEveryPartMatchesTheBinnedModelChiSquare) {
   model.tau = 1.3, model.g = 0.4;
   model.uncollided_fraction = 0.4 * model.alpha_probability[0];
   model.once_fraction = 0.3;
+  model.alpha_tilt = {-2.5, 1.0, 0.3, 0.0, -0.7, 4.0};  // spread over 3x finer bins as the sampler spreads them
   ASSERT_EQ(model_error(model), "");
   ShellSampler s(model);
   for (int f : {1, 3}) {

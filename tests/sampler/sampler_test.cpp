@@ -9,6 +9,7 @@
 #include "rng.h"
 #include "seed.h"
 #include "stf/hemisphere.h"
+#include "stf/tilt.h"
 #include "stf/vmf.h"
 #include "test_models.h"
 #include "test_numerics.h"
@@ -86,6 +87,13 @@ StfModel with_uncollided(StfModel m) {
   return m;
 }
 
+// Exit points crowding to either edge of their bins (stf/tilt.h), strongly in some.
+StfModel tilted(StfModel m) {
+  const double tilts[] = {-2.5, 1.0, 0.3, 0.0, -0.7, 4.0};
+  for (int b = 0; b < m.bins(); ++b) m.alpha_tilt.push_back(tilts[b % 6]);
+  return m;
+}
+
 // The same lobes made hemispherical: each times its bin's outward cosine, renormalised.
 StfModel hemispherical(StfModel m) {
   m.hemispherical = true;
@@ -116,19 +124,24 @@ TEST(Sampler, FullSampleMatchesPdfChiSquare) {
   const std::uint64_t seed = test::test_seed(53);
   SCOPED_TRACE(test::seed_trace(seed));
   for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model()),
-                               hemispherical(with_uncollided(test::make_vmf_model()))}) {
+                               hemispherical(with_uncollided(test::make_vmf_model())),
+                               tilted(with_uncollided(test::make_vmf_model())), tilted(test::make_sh_model())}) {
     ShellSampler s(model);
     const int bins = model.bins(), sub = 3, quarters = 4, n = 600000;
     AxisBins dir({0, 0, 1}, 2.0);
     dir.n_t = 6;
     dir.n_phi = 4;
-    // Expected: P(bin) * 1/sub (area-uniform within the band) * 1/4 (beta) * P(direction cell | bin).
+    // Expected: P(bin) * P(area part k of the band) * 1/4 (beta) * P(direction cell | bin), with
+    // P(part k) the integral of the tilted density over it (1/sub untilted).
     std::vector<double> expected, observed(bins * sub * quarters * dir.bins() + 1, 0);
     for (int b = 0; b < bins; ++b) {
       std::vector<double> d = dir.expected([&](const Vec3& w) { return s.direction_pdf(b, w); });
       const double smooth = model.alpha_probability[b] - (b == 0 ? model.uncollided_fraction : 0);
-      for (int k = 0; k < sub * quarters; ++k)
-        for (double p : d) expected.push_back(n * smooth / (sub * quarters) * p);
+      for (int k = 0; k < sub * quarters; ++k) {
+        const double part = integrate([&](double v) { return tilt_density(model.tilt(b), v); }, double(k / quarters) / sub,
+                                      double(k / quarters + 1) / sub, 4);
+        for (double p : d) expected.push_back(n * smooth * part / quarters * p);
+      }
     }
     expected.push_back(n * model.uncollided_fraction);
     if (model.uncollided_fraction == 0) expected.pop_back(), observed.pop_back();
@@ -160,7 +173,7 @@ TEST(Sampler, FullSampleMatchesPdfChiSquare) {
 
 TEST(Sampler, PdfOfASampleIsTheReturnedPdf) {
   for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model()),
-                               hemispherical(with_uncollided(test::make_vmf_model()))}) {
+                               hemispherical(with_uncollided(test::make_vmf_model())), tilted(test::make_vmf_model())}) {
     ShellSampler s(model);
     Uniforms u{54};
     for (int i = 0; i < 20000; ++i) {
@@ -208,23 +221,47 @@ TEST(Sampler, PdfIntegratesToOne) {
 
 // E[1_A / pdf] = |A| where the pdf is positive on A: A = exit points with alpha in bins 1..2
 // (any beta), directions in the upper hemisphere: |A| = 2 pi (cos a1 - cos a3) * 2 pi.
+// With tilted bins the pdf varies with the exit point inside a band; the measure does not.
 TEST(Sampler, InversePdfRecoversTheMeasureOfRegions) {
-  ShellSampler s(test::make_vmf_model());
-  const StfModel& m = s.model();
-  const double measure = 2 * kPi * (std::cos(m.alpha_edges[1]) - std::cos(m.alpha_edges[3])) * 2 * kPi;
-  Uniforms u{55};
-  const int n = 400000;
-  double sum = 0, sum2 = 0;
-  for (int i = 0; i < n; ++i) {
-    ExitSample x = s.sample(u(), u(), u(), u());
-    double alpha = std::acos(std::clamp(x.point.z, -1.0, 1.0));
-    bool in = alpha >= m.alpha_edges[1] && alpha < m.alpha_edges[3] && x.direction.z > 0;
-    double v = in ? 1 / x.pdf : 0;
-    sum += v;
-    sum2 += v * v;
+  for (const StfModel& model : {test::make_vmf_model(), tilted(test::make_vmf_model())}) {
+    ShellSampler s(model);
+    const StfModel& m = s.model();
+    const double measure = 2 * kPi * (std::cos(m.alpha_edges[1]) - std::cos(m.alpha_edges[3])) * 2 * kPi;
+    Uniforms u{55};
+    const int n = 400000;
+    double sum = 0, sum2 = 0;
+    for (int i = 0; i < n; ++i) {
+      ExitSample x = s.sample(u(), u(), u(), u());
+      double alpha = std::acos(std::clamp(x.point.z, -1.0, 1.0));
+      bool in = alpha >= m.alpha_edges[1] && alpha < m.alpha_edges[3] && x.direction.z > 0;
+      double v = in ? 1 / x.pdf : 0;
+      sum += v;
+      sum2 += v * v;
+    }
+    double mean = sum / n, error = std::sqrt((sum2 / n - mean * mean) / n);
+    EXPECT_NEAR(mean, measure, 6 * error) << "standard error " << error << (m.alpha_tilt.empty() ? "" : ", tilted");
   }
-  double mean = sum / n, error = std::sqrt((sum2 / n - mean * mean) / n);
-  EXPECT_NEAR(mean, measure, 6 * error) << "standard error " << error;
+}
+
+// The tilted law's three forms against each other and against quadrature of the density.
+TEST(Tilt, DensityMassAndQuantileAgree) {
+  for (double tilt : {-kMaxTilt, -30.0, -2.5, -1e-9, 0.0, 1e-7, 0.7, 25.0, kMaxTilt}) {
+    EXPECT_NEAR(integrate([&](double v) { return tilt_density(tilt, v); }, 0, 1, 256), 1, 1e-10) << tilt;
+    for (double u0 : {0.0, 0.1, 0.45}) {
+      for (double u1 : {0.5, 0.93, 1.0}) {
+        const double q = integrate([&](double v) { return tilt_density(tilt, v); }, u0, u1, 256);
+        EXPECT_NEAR(tilt_mass(tilt, u0, u1), q, 1e-10 + 1e-9 * q) << tilt << " " << u0 << " " << u1;
+      }
+    }
+    for (double xi : {0.0, 1e-12, 0.3, 0.5, 0.999, 1.0}) {
+      const double u = tilt_quantile(tilt, xi);
+      ASSERT_TRUE(u >= 0 && u <= 1) << tilt << " " << xi;
+      // Where the density is tiny the distribution function is flat and u is ill-determined.
+      EXPECT_NEAR(tilt_mass(tilt, 0, u), xi, 1e-12) << tilt << " " << xi;
+    }
+  }
+  EXPECT_EQ(tilt_density(0, 0.3), 1);
+  EXPECT_EQ(tilt_quantile(0, 0.3), 0.3);
 }
 
 TEST(Sampler, WorldSpaceSamplesAreRotatedLocalOnes) {

@@ -42,6 +42,10 @@ struct StfModel {
 
   std::vector<double> alpha_edges;        // [bins + 1], 0 .. pi
   std::vector<double> alpha_probability;  // [bins], sums to 1: P(exit point in bin)
+  // Inside bin b the smooth part's exit points have density tilt_density(alpha_tilt[b], u)
+  // in u, the bin's area fraction from its lower edge (stf/tilt.h); empty: uniform in area
+  // (format versions before 4).
+  std::vector<double> alpha_tilt;
   std::vector<BinStatus> status;          // [bins]
 
   // kVmf: `lobes` lobes per bin, [bins * lobes].
@@ -67,6 +71,7 @@ struct StfModel {
   std::vector<double> sh_chebyshev;
 
   int bins() const { return int(alpha_probability.size()); }
+  double tilt(int b) const { return alpha_tilt.empty() ? 0.0 : alpha_tilt[std::size_t(b)]; }
   // Shares of all escapes: the uncollided delta, and the smooth (fitted) part in alpha bin b.
   double uncollided_probability() const { return (1 - once_fraction) * uncollided_fraction; }
   double smooth_probability(int b) const {

@@ -11,6 +11,7 @@
 //     f64 tau, albedo, g, escape probability, absorbed fraction, truncated fraction,
 //         uncollided fraction (version >= 2), once-scattered fraction (version >= 3),
 //     f32 alpha probability [bins], u8 bin status [bins] padded to 4 bytes,
+//     f32 alpha tilt [bins] (version >= 4; stf/tilt.h),
 //     vmf: f32 [bins * lobes * 4] (weight, kappa, mean's polar and azimuthal angle; up to
 //          version 2 f32 [bins * lobes * 5] (weight, kappa, mean x, y, z))
 //     sh:  f32 [bins * (L+1)^2], or with alpha degree D >= 0 f32 [(D+1) * (L+1)^2]
@@ -27,8 +28,8 @@
 namespace stf {
 
 // Version 2 adds each model's uncollided fraction, version 3 its once-scattered fraction (after
-// the uncollided one); packs of versions 1 and 2 still load (fractions 0).
-inline constexpr std::uint32_t kPackVersion = 3;
+// the uncollided one), version 4 the alpha tilts; older packs still load (fractions and tilts 0).
+inline constexpr std::uint32_t kPackVersion = 4;
 
 struct PackEntry {
   std::string name;  // e.g. the medium's name in a scene; may be empty

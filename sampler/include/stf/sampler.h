@@ -2,11 +2,13 @@
 //
 // Measures (DESIGN.md): a sample is an exit point y on the unit sphere and an exit direction
 // w', in the local frame where the start direction is +z. pdf() is per unit area of the unit
-// sphere per steradian and integrates to 1 over the (4 pi)^2 domain:
-//   p(y, w') = P(bin of alpha) / (2 pi (cos a0 - cos a1)) * p(R_z(-beta) w' | bin),
-// alpha = angle(y, +z) in [a0, a1), beta = azimuth of y: the exit point is uniform in area
-// within its alpha band, beta is uniform, and the direction density is the fitted one in the
-// frame where y lies in the x-z plane. All methods are const, thread-safe, allocation-free.
+// sphere per steradian and integrates to 1 over the (4 pi)^2 domain; for the smooth part
+//   p(y, w') = P(bin of alpha) / (2 pi (cos a0 - cos a1)) * t(u) * p(R_z(-beta) w' | bin),
+// alpha = angle(y, +z) in [a0, a1), beta = azimuth of y, u = (cos a0 - cos alpha) / (cos a0 -
+// cos a1) and t the bin's tilted density (stf/tilt.h; 1 in models without tilts): beta is
+// uniform, and the direction density is the fitted one in the frame where y lies in the x-z
+// plane. The singular parts carry their discrete probabilities (ExitSample::component). All
+// methods are const, thread-safe, allocation-free.
 #pragma once
 
 #include <vector>
@@ -86,6 +88,9 @@ class ShellSampler {
   // A direction of lobe l from its quantile u of cos(theta) and azimuth 2 pi v.
   Vec3 lobe_direction(const Lobe& l, double u, double v) const;
   int alpha_bin_of(double cos_alpha) const;
+  // Density of the smooth part's exit points in `bin` at cos(alpha), per unit area of the unit
+  // sphere: the bin's probability spread by its tilt.
+  double point_density(int bin, double cos_alpha) const;
   // sample() less the pdf; `bin` is where the smooth part was drawn (-1: the delta).
   ExitSample draw(double u0, double u1, double u2, double u3, int& bin, Vec3& local) const;
   WorldExit to_world(const Vec3& position, const Vec3& direction, double radius, const ExitSample& s) const;
