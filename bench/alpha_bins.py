@@ -22,8 +22,10 @@ area, as a perfectly fitted flat model of 45 or 18 bins would be, then compared 
     here by maximum likelihood to the reference's own sub-bin counts, as `stf fit` fits it;
     what remains is the directions' turning with the exit point inside a bin.
 And with fitting: an hvmf:auto model of an independent 45-bin 1e7-path table against the
-90-bin reference (`model_45`), and the same model with its tilts removed (`model_45_flat`,
-the model as stf built it before tilts).
+90-bin reference (`model_45`: as fitted, with tilts and, where the held-out data chose it,
+blended bins; `model_45_blend` says whether), the same model without blending
+(`model_45_tilted`) and without tilts either (`model_45_flat`: the model as stf built it
+before both).
 
 Writes OUT/alpha_bins.json and prints a table. Usage:
   bench/alpha_bins.py [--out DIR] [--paths 1e7] [--reference-paths 3e7] [--grid healpix:16]
@@ -140,12 +142,14 @@ def tilted(p, singular, area, subs, group):
     return out + singular
 
 
-def flat_copy(model, path):
-    """The model without its tilts: uniform in area inside every bin."""
+def variant(model, path, tilts):
+    """The model without blended bins and, unless `tilts`, without its tilts (uniform in area
+    inside every bin)."""
     with open(model, "rb") as src, open(path, "wb") as dst:
         dst.write(src.read())
     with h5py.File(path, "r+") as f:
-        if "alpha/tilt" in f:
+        f.attrs["alpha_blend"] = 0
+        if not tilts and "alpha/tilt" in f:
             del f["alpha/tilt"]
 
 
@@ -164,7 +168,7 @@ def main():
     stf = Stf()
     rows = []
     print("| tau | g | raw table (90 bins) | pooled table 45 / 18 | pooled reference 45 / 18 | "
-          "interpolated reference 45 / 18 | tilted reference 45 / 18 | 45-bin model, flat / tilted |")
+          "interpolated reference 45 / 18 | tilted reference 45 / 18 | 45-bin model, flat / tilted / as fitted |")
     for i, m in enumerate(MEDIA):
         table, ref = os.path.join(a.out, f"m{i}_table.h5"), os.path.join(a.out, f"m{i}_reference.h5")
         stf.precompute(m, a.paths, 1, table, a.grid, BINS)
@@ -182,17 +186,21 @@ def main():
         table45, model45 = os.path.join(a.out, f"m{i}_table45.h5"), os.path.join(a.out, f"m{i}_model45.h5")
         stf.precompute(m, a.paths, 3, table45, a.grid, BINS // 2)
         stf.fit(table45, ["--model", "hvmf:auto"], model45)
-        flat = os.path.join(a.out, f"m{i}_model45_flat.h5")
-        flat_copy(model45, flat)
         scratch = os.path.join(a.out, "eval.json")
         row["model_45"] = stf.evaluate(model45, ref, scratch)["joint_tv_distance"]
-        row["model_45_flat"] = stf.evaluate(flat, ref, scratch)["joint_tv_distance"]
+        with h5py.File(model45, "r") as f:
+            row["model_45_blend"] = bool(f.attrs["alpha_blend"])
+        for name, tilts in (("flat", False), ("tilted", True)):
+            other = os.path.join(a.out, f"m{i}_model45_{name}.h5")
+            variant(model45, other, tilts)
+            row[f"model_45_{name}"] = stf.evaluate(other, ref, scratch)["joint_tv_distance"]
         rows.append(row)
         print(f"| {row['tau']:g} | {m['g']:g} | {row['raw_table']:.4f} | {row['pooled_table_45']:.4f} / "
               f"{row['pooled_table_18']:.4f} | {row['pooled_reference_45']:.4f} / {row['pooled_reference_18']:.4f} | "
               f"{row['interpolated_reference_45']:.4f} / {row['interpolated_reference_18']:.4f} | "
               f"{row['tilted_reference_45']:.4f} / {row['tilted_reference_18']:.4f} | "
-              f"{row['model_45_flat']:.4f} / {row['model_45']:.4f} |")
+              f"{row['model_45_flat']:.4f} / {row['model_45_tilted']:.4f} / {row['model_45']:.4f}"
+              f"{' (blended)' if row['model_45_blend'] else ''} |")
     with open(os.path.join(a.out, "alpha_bins.json"), "w") as f:
         json.dump({"paths": a.paths, "reference_paths": a.reference_paths, "grid": a.grid, "media": rows}, f, indent=1)
 

@@ -110,8 +110,9 @@ void run_plot(const PlotOptions& o) {
       } catch (const std::invalid_argument& e) {
         fail("--model: " + std::string(e.what()));
       }
-      std::vector<double> density =
-          binned->bin(bin, fit::smooth_cell_probabilities(model, bin / binned->group(), fit::QuadratureLevels(*grid))).second;
+      const fit::QuadratureLevels levels(*grid);
+      fit::SmoothCellCache smooth(model, levels);
+      std::vector<double> density = binned->bin(bin, std::ref(smooth)).second;
       for (std::int64_t c = 0; c < t.cells; ++c) density[c] /= t.solid_angle[c];
       h5::put_attr(file, "side_by_side", 1);
       write_panel(file, int(o.tables.size()), t, *grid, density,

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "evaluate.h"
+#include "stf/quadrature.h"
 #include "stf/tilt.h"
 
 namespace stf::fit {
@@ -35,18 +36,45 @@ double tilt_from_counts(const std::vector<double>& edges, const std::vector<doub
   return 0.5 * (lo + hi);
 }
 
-std::vector<double> fit_alpha_tilts(const Table& t) {
+std::vector<double> fit_alpha_tilts(const Table& t, int half) {
   std::vector<double> tilts;
   if (t.sub_bins == 0) return tilts;
   const std::size_t subs = std::size_t(t.sub_bins);
   for (int b = 0; b < t.alpha_bins; ++b) {
-    std::vector<double> edges(subs + 1), counts(subs);
+    std::vector<double> edges(subs + 1), counts(subs, 0.0);
     for (std::size_t k = 0; k <= subs; ++k) edges[k] = t.sub_edge(b, int(k));
-    for (std::size_t k = 0; k < subs; ++k)
-      counts[k] = t.multiple_sub_half[0][std::size_t(b) * subs + k] + t.multiple_sub_half[1][std::size_t(b) * subs + k];
+    for (int h = 0; h < 2; ++h)
+      for (std::size_t k = 0; k < subs && (half < 0 || half == h); ++k) counts[k] += t.multiple_sub_half[h][std::size_t(b) * subs + k];
     tilts.push_back(tilt_from_counts(edges, counts));
   }
   return tilts;
+}
+
+BlendShares blend_shares(double tilt, double u0, double u1) {
+  // Composite Gauss-Legendre: the integrands are smooth, and 32 panels resolve e^{40 u}.
+  auto integral = [&](double a, double b, double centre_sign) {
+    if (!(b > a)) return 0.0;
+    constexpr int kPanels = 32;
+    double sum = 0;
+    for (int p = 0; p < kPanels; ++p)
+      sum += gauss8([&](double u) { return centre_sign * (u - 0.5) * tilt_density(tilt, u); }, a + (b - a) * p / kPanels,
+                    a + (b - a) * (p + 1) / kPanels);
+    return sum;
+  };
+  BlendShares s;
+  s.lower = integral(u0, std::min(u1, 0.5), -1);
+  s.upper = integral(std::max(u0, 0.5), u1, 1);
+  s.own = tilt_mass(tilt, u0, u1) - s.lower - s.upper;
+  return s;
+}
+
+std::vector<double> blended_cells(double tilt, const std::vector<double>& own, const std::vector<double>* lower,
+                                  const std::vector<double>* upper) {
+  const BlendShares s = blend_shares(tilt, 0, 1);
+  const double lo = lower ? s.lower : 0, hi = upper ? s.upper : 0, mine = 1 - lo - hi;
+  std::vector<double> p(own.size());
+  for (std::size_t c = 0; c < p.size(); ++c) p[c] = mine * own[c] + (lo > 0 ? lo * (*lower)[c] : 0) + (hi > 0 ? hi * (*upper)[c] : 0);
+  return p;
 }
 
 void group_sub_bins(const Table& t, int f, Table& coarse) {

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "cell_probability.h"
+#include "alpha_tilt.h"
 #include "grid.h"
 #include "stf/tilt.h"
 
@@ -97,18 +98,34 @@ BinnedModel::BinnedModel(const StfModel& model, const Table& reference, const Di
   if (model.once_fraction > 0) once_ = bin_once_scattered(model.tau, model.g, reference.alpha_edges, grid);
 }
 
-std::pair<double, std::vector<double>> BinnedModel::bin(int b, const std::vector<double>& smooth_cells) const {
+const std::vector<double>& SmoothCellCache::operator()(int j) {
+  for (const auto& [bin, cells] : kept_)
+    if (bin == j) return cells;
+  if (kept_.size() >= 3) kept_.erase(kept_.begin());
+  kept_.emplace_back(j, smooth_cell_probabilities(model_, j, levels_));
+  return kept_.back().second;
+}
+
+std::pair<double, std::vector<double>> BinnedModel::bin(int b, const SmoothCells& smooth_cells) const {
   const double once = model_.once_fraction;
   // The smooth part is spread over the reference bins of its group by its tilted density in
   // area, as the sampler spreads alpha; the delta sits at alpha = 0, in reference bin 0 alone.
   const int j = b / group_;
   double below = 0;
   for (int a = j * group_; a < b; ++a) below += area_share(reference_, a, group_);
-  const double smooth = model_.smooth_probability(j) *
-                        tilt_mass(model_.tilt(j), below, std::min(1.0, below + area_share(reference_, b, group_)));
-  std::vector<double> p(smooth_cells.size());
-  for (std::size_t c = 0; c < p.size(); ++c) p[c] = smooth * smooth_cells[c];
-  double probability = smooth;
+  const double above = std::min(1.0, below + area_share(reference_, b, group_));
+  const double smooth = model_.smooth_probability(j);
+  BlendShares s = model_.alpha_blend ? blend_shares(model_.tilt(j), below, above) : BlendShares{tilt_mass(model_.tilt(j), below, above), 0, 0};
+  if (j == 0) s.own += s.lower, s.lower = 0;
+  if (j + 1 == model_.bins()) s.own += s.upper, s.upper = 0;
+  std::vector<double> p(reference_.cells, 0.0);
+  for (const auto& [share, bin] : {std::pair{s.own, j}, std::pair{s.lower, j - 1}, std::pair{s.upper, j + 1}}) {
+    if (share <= 0) continue;
+    const std::vector<double>& cells = smooth_cells(bin);
+    for (std::size_t c = 0; c < p.size(); ++c) p[c] += smooth * share * cells[c];
+  }
+  const double smooth_mass = smooth * (s.own + s.lower + s.upper);
+  double probability = smooth_mass;
   if (b == 0) {
     p[std::size_t(pole_cell_)] += model_.uncollided_probability();
     probability += model_.uncollided_probability();
@@ -125,13 +142,9 @@ std::pair<double, std::vector<double>> BinnedModel::bin(int b, const std::vector
 Evaluation evaluate(const StfModel& m, const Table& reference, const std::vector<double>& chi2_dof) {
   std::unique_ptr<DirectionGrid> grid = make_grid(reference.grid);
   const BinnedModel binned(m, reference, *grid);
-  const int f = binned.group();
   const QuadratureLevels levels(*grid);
-  std::vector<double> smooth;  // of the current model bin
-  Evaluation ev = evaluate_bins(reference, [&](int b) {
-    if (b % f == 0) smooth = smooth_cell_probabilities(m, b / f, levels);
-    return binned.bin(b, smooth);
-  });
+  SmoothCellCache smooth(m, levels);
+  Evaluation ev = evaluate_bins(reference, [&](int b) { return binned.bin(b, std::ref(smooth)); });
   if (chi2_dof.size() == ev.per_alpha.size()) {
     // Over the bins that have a value (fitted bins; borrowed and empty ones have -1).
     double sum = 0, weight = 0;

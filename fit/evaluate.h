@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -44,7 +45,8 @@ std::vector<double> smooth_cell_probabilities(const StfModel& model, int bin, co
 
 // A model's exit distribution in a reference table's layout, bin by reference bin, every part in
 // its exact cells: the smooth part (model bins spread over the reference bins they group by
-// their tilted density in area, as a sampler spreads alpha), the uncollided delta in reference bin 0's cell of +z and
+// their tilted density in area, as a sampler spreads alpha, and blended with neighbours as the
+// sampler blends them), the uncollided delta in reference bin 0's cell of +z and
 // the once-scattered part binned exactly.
 class BinnedModel {
  public:
@@ -53,9 +55,10 @@ class BinnedModel {
   BinnedModel(const StfModel& model, const Table& reference, const DirectionGrid& grid);
   int group() const { return group_; }
   // Reference bin b: its probability and its distribution over cells, from the smooth part's
-  // cell probabilities in model bin b / group() (smooth_cell_probabilities, computed once per
-  // group).
-  std::pair<double, std::vector<double>> bin(int b, const std::vector<double>& smooth_cells) const;
+  // cell probabilities of model bins (`smooth_cells(j)`: smooth_cell_probabilities of model
+  // bin j, asked for b / group() and, in blended models, its neighbours).
+  using SmoothCells = std::function<const std::vector<double>&(int)>;
+  std::pair<double, std::vector<double>> bin(int b, const SmoothCells& smooth_cells) const;
 
  private:
   const StfModel& model_;
@@ -63,6 +66,19 @@ class BinnedModel {
   int group_ = 1;
   std::int64_t pole_cell_ = 0;
   OnceScatteredCells once_;
+};
+
+// Smooth cell probabilities of model bins as BinnedModel::bin asks for them, in ascending order
+// of the reference bins: each computed once, at most three kept.
+class SmoothCellCache {
+ public:
+  SmoothCellCache(const StfModel& model, const QuadratureLevels& levels) : model_(model), levels_(levels) {}
+  const std::vector<double>& operator()(int j);
+
+ private:
+  const StfModel& model_;
+  const QuadratureLevels& levels_;
+  std::vector<std::pair<int, std::vector<double>>> kept_;
 };
 
 // A model's alpha bins may be groups of the reference's (a tolerance fit's): each reference

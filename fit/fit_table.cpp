@@ -263,6 +263,19 @@ HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const D
   return best;
 }
 
+// Held-out scores of `flat` (per-bin cell probabilities' logarithms of half-0 fits) with each
+// bin's density blended with its neighbours' as a blended model's bins are (tilts from half 0).
+HeldOut blended_score(const Table& t, const HeldOut& flat) {
+  const std::vector<double> tilts = fit_alpha_tilts(t, 0);
+  std::vector<std::vector<double>> p(t.alpha_bins), q(t.alpha_bins);
+  for (int b = 0; b < t.alpha_bins; ++b)
+    for (double l : flat.log_p[b]) p[b].push_back(std::exp(l));
+  for (int b = 0; b < t.alpha_bins; ++b)
+    q[b] = blended_cells(tilts.empty() ? 0.0 : tilts[b], p[b], b > 0 ? &p[b - 1] : nullptr,
+                         b + 1 < t.alpha_bins ? &p[b + 1] : nullptr);
+  return score(t, 1, q);
+}
+
 // Area-uniform alpha marginal: for a model of nothing escaping.
 std::vector<double> uniform_alpha(const std::vector<double>& edges) {
   std::vector<double> p(edges.size() - 1);
@@ -343,6 +356,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   int size = s.size;
   ShSmoothing smoothing;
   BinFits chosen_fits;  // on half 0: where the final fit's lobes start
+  bool blend = false;
   if (s.automatic || s.kind == ModelKind::kSh) {
     std::vector<int> sizes = s.automatic ? auto_candidates(s.kind) : std::vector<int>{s.size};
     std::vector<HeldOut> scores;
@@ -374,6 +388,11 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
     size = sizes[chosen];
     smoothing = ts[chosen];
     chosen_fits = std::move(half_fits[chosen]);
+    // Blending adds no parameter: it is kept where it lowers the held-out NLL.
+    if (s.automatic && t.alpha_bins > 1) {
+      r.blend_heldout_nll = {scores[chosen].nll, blended_score(t, scores[chosen]).nll};
+      blend = r.blend_heldout_nll[1] < r.blend_heldout_nll[0];
+    }
   }
 
   std::unique_ptr<ShProjector> projector;
@@ -404,6 +423,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   m.alpha_probability = escaped > 0 ? escapes : uniform_alpha(t.alpha_edges);
   for (double& p : m.alpha_probability) p /= escaped > 0 ? escaped : 1;
   m.alpha_tilt = fit_alpha_tilts(t);
+  m.alpha_blend = blend;
   if (s.kind == ModelKind::kVmf) {
     m.lobes = size;
     for (const auto& lobes : fits.lobes) m.vmf.insert(m.vmf.end(), lobes.begin(), lobes.end());

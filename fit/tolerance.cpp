@@ -147,15 +147,13 @@ Certificate certify(const StfModel& model, const Table& fit, const Table& h,
   // held-out escapes in cells the model calls empty from dominating the variance.
   const double floor = 1 / n_fit;
   std::vector<std::vector<double>> cell_probability(bins, std::vector<double>(h.cells, 0.0));
-  for_each_bin(bins, settings, [&](int j) {
-    if (model.alpha_probability[j] > 0)
-      cell_probability[j] = smooth_cell_probabilities(model, j, levels);
-  });
+  // Every bin's: a blended bin also draws on its neighbours' densities.
+  for_each_bin(bins, settings, [&](int j) { cell_probability[j] = smooth_cell_probabilities(model, j, levels); });
+  const auto cells_of = [&](int j) -> const std::vector<double>& { return cell_probability[std::size_t(j)]; };
   double chi2_var = 0, weight_sum = 0;
   for (int j = 0; j < bins; ++j) {
-    const std::vector<double>& q = cell_probability[j];
     for (int a = j * f; a < (j + 1) * f; ++a) {
-      const auto [bin_probability, p] = binned.bin(a, q);
+      const auto [bin_probability, p] = binned.bin(a, cells_of);
       for (std::int64_t c = 0; c < h.cells; ++c) {
         const std::size_t i = std::size_t(a) * h.cells + c;
         const double count = x[i], y = count / n, m = bin_probability * p[c],

@@ -22,6 +22,7 @@ ShellSampler::ShellSampler(StfModel model) : model_(std::move(model)) {
   if (model_.once_fraction > 0) once_ = OnceScattered(model_.tau, model_.g);
   for (double a : model_.alpha_edges) cos_edges_.push_back(std::cos(a));
   cos_edges_.front() = 1, cos_edges_.back() = -1;
+  for (int b = 0; b < bins; ++b) tilt_expm1_.push_back(std::expm1(model_.tilt(b)));
   if (model_.hemispherical && model_.lobe_norm.size() != model_.vmf.size()) model_.rebuild_lobe_norms();
   for (int b = 0; b < bins && model_.hemispherical; ++b) outward_.emplace_back(model_.alpha_edges[b], model_.alpha_edges[b + 1]);
   for (std::size_t i = 0; i < model_.vmf.size(); ++i) {
@@ -140,10 +141,18 @@ ExitSample ShellSampler::draw(double u0, double u1, double u2, double u3, int& b
     remainder = std::min((remainder - share) / (1 - share), 1.0);
   }
   double c0 = cos_edges_[bin], c1 = cos_edges_[bin + 1];
-  double cos_alpha = c0 + tilt_quantile(model_.tilt(bin), remainder) * (c1 - c0), sin_alpha = std::sqrt(std::max(0.0, 1 - cos_alpha * cos_alpha));
+  const double u = tilt_quantile(model_.tilt(bin), tilt_expm1_[std::size_t(bin)], remainder);
+  double cos_alpha = c0 + u * (c1 - c0), sin_alpha = std::sqrt(std::max(0.0, 1 - cos_alpha * cos_alpha));
   double cb, sb;
   sincos_2pi(u1, sb, cb);  // beta = 2 pi u1
-  local = sample_direction(bin, u2, u3);
+  // A blended bin: the neighbour's density with probability w, decided by u2's lowest part.
+  double w;
+  const int neighbour = model_.blend_neighbour(bin, u, w);
+  if (w > 0 && u2 < w) {
+    local = sample_direction(neighbour, u2 / w, u3);
+  } else {
+    local = sample_direction(bin, w > 0 ? std::min((u2 - w) / (1 - w), std::nextafter(1.0, 0.0)) : u2, u3);
+  }
   s.point = {sin_alpha * cb, sin_alpha * sb, cos_alpha};
   s.direction = rotate_z(local, cb, sb);
   return s;
@@ -153,7 +162,7 @@ ExitSample ShellSampler::sample(double u0, double u1, double u2, double u3) cons
   int bin;
   Vec3 local;
   ExitSample s = draw(u0, u1, u2, u3, bin, local);
-  if (bin >= 0) s.pdf = point_density(bin, s.point.z) * direction_pdf(bin, local);
+  if (bin >= 0) s.pdf = smooth_pdf(bin, s.point.z, local);
   return s;
 }
 
@@ -162,13 +171,17 @@ double ShellSampler::pdf(const Vec3& point, const Vec3& direction) const {
   double rho = std::sqrt(point.x * point.x + point.y * point.y);
   double cb = rho > 0 ? point.x / rho : 1, sb = rho > 0 ? point.y / rho : 0;
   Vec3 local = rotate_z(direction, cb, -sb);
-  return point_density(bin, point.z) * direction_pdf(bin, local);
+  return smooth_pdf(bin, point.z, local);
 }
 
-double ShellSampler::point_density(int bin, double cos_alpha) const {
+double ShellSampler::smooth_pdf(int bin, double cos_alpha, const Vec3& local) const {
   const double c0 = cos_edges_[bin], c1 = cos_edges_[bin + 1];
   const double u = std::clamp((c0 - cos_alpha) / (c0 - c1), 0.0, 1.0);
-  return model_.smooth_probability(bin) / (2 * kPi * (c0 - c1)) * tilt_density(model_.tilt(bin), u);
+  const double point = model_.smooth_probability(bin) / (2 * kPi * (c0 - c1)) * tilt_density(model_.tilt(bin), u);
+  double w;
+  const int neighbour = model_.blend_neighbour(bin, u, w);
+  const double own = direction_pdf(bin, local);
+  return point * (w > 0 ? (1 - w) * own + w * direction_pdf(neighbour, local) : own);
 }
 
 namespace {

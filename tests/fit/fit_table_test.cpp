@@ -114,7 +114,8 @@ TEST(FitTable, UncollidedEscapesAreAnExactDeltaNotALobe) {
     std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
     QuadratureLevels levels(*grid);
     const BinnedModel binned(m, t, *grid);
-    std::vector<double> p = binned.bin(0, smooth_cell_probabilities(m, 0, levels)).second;
+    SmoothCellCache smooth(m, levels);
+    std::vector<double> p = binned.bin(0, std::ref(smooth)).second;
     const std::int64_t pole = grid->cell({0, 0, 1});
     double bin0 = 0;
     for (std::int64_t c = 0; c < t.cells; ++c) bin0 += t.weight_half[0][c] + t.weight_half[1][c];
@@ -316,7 +317,7 @@ TEST(FitTable, DeterministicForAnyThreadCount) {
 TEST(FitTable, StoreLoadRoundTripIsExact) {
   Table t = make_table({4, 0.5, 0.6, 1}, 30000);
   std::string path = ::testing::TempDir() + "/model_" + std::to_string(::getpid()) + ".h5";
-  for (const char* spec : {"vmf:2", "sh:6", "sh:6 across alpha"}) {
+  for (const char* spec : {"vmf:2", "sh:6", "sh:6 across alpha", "hvmf:auto"}) {
     FitReport report;
     const std::string name = spec;
     FitSettings settings = parse_model_spec(name.substr(0, name.find(' ')));
@@ -333,6 +334,10 @@ TEST(FitTable, StoreLoadRoundTripIsExact) {
     EXPECT_EQ(r.sh_table, m.sh_table);
     EXPECT_EQ(r.alpha_degree, m.alpha_degree);
     EXPECT_EQ(r.sh_chebyshev, m.sh_chebyshev);
+    EXPECT_EQ(r.alpha_tilt, m.alpha_tilt);
+    EXPECT_FALSE(r.alpha_tilt.empty());
+    EXPECT_EQ(r.alpha_blend, m.alpha_blend);
+    EXPECT_EQ(r.hemispherical, m.hemispherical);
     EXPECT_EQ(r.packed_bytes(), m.packed_bytes());
     ASSERT_EQ(r.vmf.size(), m.vmf.size());
     for (std::size_t i = 0; i < m.vmf.size(); ++i) {

@@ -50,8 +50,9 @@ std::vector<double> joint(const StfModel& m, const Table& t) {
   const QuadratureLevels levels(*grid);
   const BinnedModel binned(m, t, *grid);
   std::vector<double> p;
+  SmoothCellCache smooth(m, levels);
   for (int b = 0; b < t.alpha_bins; ++b) {
-    auto [probability, q] = binned.bin(b, smooth_cell_probabilities(m, b / binned.group(), levels));
+    auto [probability, q] = binned.bin(b, std::ref(smooth));
     for (double v : q) p.push_back(probability * v);
   }
   return p;

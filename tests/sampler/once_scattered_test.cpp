@@ -112,7 +112,7 @@ TEST(OnceScattered, SamplerMatchesTheExactBinningChiSquare) {
 // All three parts through ShellSampler: the smooth part (vMF), the uncollided delta and the
 // once-scattered part, against the model binned like a table, at the model's alpha bins and at
 // 3x finer ones (as a tolerance fit's model is evaluated: the smooth part spread by its tilted
-// density in area, the delta in the first fine bin alone).
+// density in area and blended with its neighbours, the delta in the first fine bin alone).
 TEST(OnceScattered, FullSamplerWithEveryPartMatchesTheBinnedModelChiSquare) {
   const std::uint64_t seed = test::test_seed(82);
   SCOPED_TRACE(test::seed_trace(seed));
@@ -121,6 +121,7 @@ TEST(OnceScattered, FullSamplerWithEveryPartMatchesTheBinnedModelChiSquare) {
   model.uncollided_fraction = 0.4 * model.alpha_probability[0];
   model.once_fraction = 0.3;
   model.alpha_tilt = {-2.5, 1.0, 0.3, 0.0, -0.7, 4.0};  // spread over 3x finer bins as the sampler spreads them
+  model.alpha_blend = true;                             // with the directions of the neighbours blended in
   ASSERT_EQ(model_error(model), "");
   ShellSampler s(model);
   for (int f : {1, 3}) {
@@ -134,8 +135,9 @@ TEST(OnceScattered, FullSamplerWithEveryPartMatchesTheBinnedModelChiSquare) {
     const fit::QuadratureLevels levels(*grid);
     const int n = 400000, bins = layout.alpha_bins;
     std::vector<double> expected, observed(std::size_t(bins) * layout.cells, 0.0);
+    fit::SmoothCellCache smooth(model, levels);
     for (int b = 0; b < bins; ++b) {
-      auto [probability, p] = binned.bin(b, fit::smooth_cell_probabilities(model, b / f, levels));
+      auto [probability, p] = binned.bin(b, std::ref(smooth));
       for (double v : p) expected.push_back(n * probability * v);
     }
     Uniforms u{seed + std::uint64_t(f)};

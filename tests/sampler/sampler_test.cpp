@@ -94,6 +94,12 @@ StfModel tilted(StfModel m) {
   return m;
 }
 
+// Bins blended with their neighbours (StfModel::alpha_blend).
+StfModel blended(StfModel m) {
+  m.alpha_blend = true;
+  return m;
+}
+
 // The same lobes made hemispherical: each times its bin's outward cosine, renormalised.
 StfModel hemispherical(StfModel m) {
   m.hemispherical = true;
@@ -125,22 +131,35 @@ TEST(Sampler, FullSampleMatchesPdfChiSquare) {
   SCOPED_TRACE(test::seed_trace(seed));
   for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model()),
                                hemispherical(with_uncollided(test::make_vmf_model())),
-                               tilted(with_uncollided(test::make_vmf_model())), tilted(test::make_sh_model())}) {
+                               tilted(with_uncollided(test::make_vmf_model())), tilted(test::make_sh_model()),
+                               blended(tilted(hemispherical(with_uncollided(test::make_vmf_model())))),
+                               blended(test::make_sh_model())}) {
     ShellSampler s(model);
     const int bins = model.bins(), sub = 3, quarters = 4, n = 600000;
     AxisBins dir({0, 0, 1}, 2.0);
     dir.n_t = 6;
     dir.n_phi = 4;
-    // Expected: P(bin) * P(area part k of the band) * 1/4 (beta) * P(direction cell | bin), with
-    // P(part k) the integral of the tilted density over it (1/sub untilted).
+    // Expected: P(bin) * P(area part k of the band) * 1/4 (beta) * P(direction cell | bin, part),
+    // with P(part k) the integral of the tilted density over it (1/sub untilted); in blended
+    // bins the direction density at area fraction v is (1 - |v - 1/2|) times the bin's plus
+    // |v - 1/2| times the neighbour's on v's side (none beyond the first and last bin).
+    std::vector<std::vector<double>> d(bins);
+    for (int b = 0; b < bins; ++b) d[b] = dir.expected([&](const Vec3& w) { return s.direction_pdf(b, w); });
     std::vector<double> expected, observed(bins * sub * quarters * dir.bins() + 1, 0);
     for (int b = 0; b < bins; ++b) {
-      std::vector<double> d = dir.expected([&](const Vec3& w) { return s.direction_pdf(b, w); });
       const double smooth = model.alpha_probability[b] - (b == 0 ? model.uncollided_fraction : 0);
       for (int k = 0; k < sub * quarters; ++k) {
-        const double part = integrate([&](double v) { return tilt_density(model.tilt(b), v); }, double(k / quarters) / sub,
-                                      double(k / quarters + 1) / sub, 4);
-        for (double p : d) expected.push_back(n * smooth * part / quarters * p);
+        const double v0 = double(k / quarters) / sub, v1 = double(k / quarters + 1) / sub;
+        auto part = [&](auto weight) {
+          return integrate([&](double v) { return weight(v) * tilt_density(model.tilt(b), v); }, v0, v1, 64);
+        };
+        const bool lower = model.alpha_blend && b > 0, upper = model.alpha_blend && b + 1 < bins;
+        const double to_lower = lower ? part([](double v) { return v < 0.5 ? 0.5 - v : 0.0; }) : 0.0;
+        const double to_upper = upper ? part([](double v) { return v > 0.5 ? v - 0.5 : 0.0; }) : 0.0;
+        const double own = part([](double) { return 1.0; }) - to_lower - to_upper;
+        for (std::size_t c = 0; c < d[b].size(); ++c)
+          expected.push_back(n * smooth / quarters *
+                             (own * d[b][c] + (lower ? to_lower * d[b - 1][c] : 0) + (upper ? to_upper * d[b + 1][c] : 0)));
       }
     }
     expected.push_back(n * model.uncollided_fraction);
@@ -173,7 +192,8 @@ TEST(Sampler, FullSampleMatchesPdfChiSquare) {
 
 TEST(Sampler, PdfOfASampleIsTheReturnedPdf) {
   for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model()),
-                               hemispherical(with_uncollided(test::make_vmf_model())), tilted(test::make_vmf_model())}) {
+                               hemispherical(with_uncollided(test::make_vmf_model())), tilted(test::make_vmf_model()),
+                               blended(tilted(test::make_vmf_model()))}) {
     ShellSampler s(model);
     Uniforms u{54};
     for (int i = 0; i < 20000; ++i) {
@@ -223,7 +243,7 @@ TEST(Sampler, PdfIntegratesToOne) {
 // (any beta), directions in the upper hemisphere: |A| = 2 pi (cos a1 - cos a3) * 2 pi.
 // With tilted bins the pdf varies with the exit point inside a band; the measure does not.
 TEST(Sampler, InversePdfRecoversTheMeasureOfRegions) {
-  for (const StfModel& model : {test::make_vmf_model(), tilted(test::make_vmf_model())}) {
+  for (const StfModel& model : {test::make_vmf_model(), tilted(test::make_vmf_model()), blended(tilted(test::make_vmf_model()))}) {
     ShellSampler s(model);
     const StfModel& m = s.model();
     const double measure = 2 * kPi * (std::cos(m.alpha_edges[1]) - std::cos(m.alpha_edges[3])) * 2 * kPi;
@@ -239,7 +259,8 @@ TEST(Sampler, InversePdfRecoversTheMeasureOfRegions) {
       sum2 += v * v;
     }
     double mean = sum / n, error = std::sqrt((sum2 / n - mean * mean) / n);
-    EXPECT_NEAR(mean, measure, 6 * error) << "standard error " << error << (m.alpha_tilt.empty() ? "" : ", tilted");
+    EXPECT_NEAR(mean, measure, 6 * error) << "standard error " << error << (m.alpha_tilt.empty() ? "" : ", tilted")
+                                          << (m.alpha_blend ? ", blended" : "");
   }
 }
 

@@ -7,7 +7,7 @@
 // alpha = angle(y, +z) in [a0, a1), beta = azimuth of y, u = (cos a0 - cos alpha) / (cos a0 -
 // cos a1) and t the bin's tilted density (stf/tilt.h; 1 in models without tilts): beta is
 // uniform, and the direction density is the fitted one in the frame where y lies in the x-z
-// plane. The singular parts carry their discrete probabilities (ExitSample::component). All
+// plane (in blended models mixed with a neighbour's, StfModel::alpha_blend). The singular parts carry their discrete probabilities (ExitSample::component). All
 // methods are const, thread-safe, allocation-free.
 #pragma once
 
@@ -88,9 +88,10 @@ class ShellSampler {
   // A direction of lobe l from its quantile u of cos(theta) and azimuth 2 pi v.
   Vec3 lobe_direction(const Lobe& l, double u, double v) const;
   int alpha_bin_of(double cos_alpha) const;
-  // Density of the smooth part's exit points in `bin` at cos(alpha), per unit area of the unit
-  // sphere: the bin's probability spread by its tilt.
-  double point_density(int bin, double cos_alpha) const;
+  // The smooth part's density at an exit point of `bin` with cos(alpha) and the direction
+  // `local` (in the exit point's x-z frame): the bin's probability spread by its tilt, times
+  // the direction density (blended with the neighbour's in blended bins).
+  double smooth_pdf(int bin, double cos_alpha, const Vec3& local) const;
   // sample() less the pdf; `bin` is where the smooth part was drawn (-1: the delta).
   ExitSample draw(double u0, double u1, double u2, double u3, int& bin, Vec3& local) const;
   WorldExit to_world(const Vec3& position, const Vec3& direction, double radius, const ExitSample& s) const;
@@ -98,6 +99,7 @@ class ShellSampler {
   StfModel model_;
   AliasTable alpha_;               // over the alpha bins
   std::vector<double> cos_edges_;  // [bins + 1], decreasing
+  std::vector<double> tilt_expm1_;  // [bins], expm1 of each bin's tilt
   std::vector<Lobe> lobes_;        // vmf: [bins * lobes]
   std::vector<double> lobe_cdf_;   // vmf: [bins * lobes], running sums of each bin's weights
   std::vector<AliasTable> cells_;  // sh: per bin, over its equal-area cells

@@ -24,11 +24,13 @@ inline double tilt_mass(double tilt, double u0, double u1) {
   return (std::expm1(tilt * u1) - std::expm1(tilt * u0)) / std::expm1(tilt);
 }
 
-// The u whose probability below is xi (exact inverse of the distribution function).
-inline double tilt_quantile(double tilt, double xi) {
+// The u whose probability below is xi (exact inverse of the distribution function), with
+// expm1(tilt) given (a sampler caches it per bin).
+inline double tilt_quantile(double tilt, double expm1_tilt, double xi) {
   if (std::abs(tilt) < kFlatTilt) return xi;
-  const double u = std::log1p(xi * std::expm1(tilt)) / tilt;
+  const double u = std::log1p(xi * expm1_tilt) / tilt;
   return u < 0 ? 0.0 : u > 1 ? 1.0 : u;
 }
+inline double tilt_quantile(double tilt, double xi) { return tilt_quantile(tilt, std::expm1(tilt), xi); }
 
 }  // namespace stf
