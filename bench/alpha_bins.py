@@ -23,7 +23,7 @@ area, as a perfectly fitted flat model of 45 or 18 bins would be, then compared 
     what remains is the directions' turning with the exit point inside a bin.
 And with fitting: an hvmf:auto model of an independent 45-bin 1e7-path table against the
 90-bin reference (`model_45`: as fitted, with tilts and, where the held-out data chose it,
-blended bins; `model_45_blend` says whether), the same model without blending
+blended bins; `model_45_blend` is the blend width, 0 for none), the same model without blending
 (`model_45_tilted`) and without tilts either (`model_45_flat`: the model as stf built it
 before both).
 
@@ -189,7 +189,7 @@ def main():
         scratch = os.path.join(a.out, "eval.json")
         row["model_45"] = stf.evaluate(model45, ref, scratch)["joint_tv_distance"]
         with h5py.File(model45, "r") as f:
-            row["model_45_blend"] = bool(f.attrs["alpha_blend"])
+            row["model_45_blend"] = int(f.attrs["alpha_blend"])
         for name, tilts in (("flat", False), ("tilted", True)):
             other = os.path.join(a.out, f"m{i}_model45_{name}.h5")
             variant(model45, other, tilts)
@@ -200,7 +200,7 @@ def main():
               f"{row['interpolated_reference_45']:.4f} / {row['interpolated_reference_18']:.4f} | "
               f"{row['tilted_reference_45']:.4f} / {row['tilted_reference_18']:.4f} | "
               f"{row['model_45_flat']:.4f} / {row['model_45_tilted']:.4f} / {row['model_45']:.4f}"
-              f"{' (blended)' if row['model_45_blend'] else ''} |")
+              f"{' (blend ' + str(row['model_45_blend']) + ')' if row['model_45_blend'] else ''} |")
     with open(os.path.join(a.out, "alpha_bins.json"), "w") as f:
         json.dump({"paths": a.paths, "reference_paths": a.reference_paths, "grid": a.grid, "media": rows}, f, indent=1)
 

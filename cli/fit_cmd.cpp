@@ -35,9 +35,11 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
     << ", \"family\": \"" << (m.kind == ModelKind::kSh ? "sh" : m.hemispherical ? "hvmf" : "vmf") << "\"";
   if (r.family_heldout_nll.size() == 2)
     s << ", \"family_heldout_nll\": {\"vmf\": " << r.family_heldout_nll[0] << ", \"sh\": " << r.family_heldout_nll[1] << "}";
-  if (r.blend_heldout_nll.size() == 2)
-    s << ", \"alpha_blend\": " << (m.alpha_blend ? "true" : "false") << ", \"blend_heldout_nll\": {\"flat\": "
-      << r.blend_heldout_nll[0] << ", \"blended\": " << r.blend_heldout_nll[1] << "}";
+  if (!r.blend_heldout_nll.empty()) {
+    s << ", \"alpha_blend\": " << m.alpha_blend << ", \"blend_heldout_nll\": [";
+    for (std::size_t i = 0; i < r.blend_heldout_nll.size(); ++i) s << (i ? ", " : "") << r.blend_heldout_nll[i];
+    s << "]";
+  }
   s
     << ",\n  \"fit_time_s\": " << r.fit_time_s << ", \"model_bytes\": " << m.packed_bytes()
     << ", \"escape_probability\": " << m.escape_probability << ",\n  \"candidates\": [";

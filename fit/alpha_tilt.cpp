@@ -50,30 +50,37 @@ std::vector<double> fit_alpha_tilts(const Table& t, int half) {
   return tilts;
 }
 
-BlendShares blend_shares(double tilt, double u0, double u1) {
-  // Composite Gauss-Legendre: the integrands are smooth, and 32 panels resolve e^{40 u}.
-  auto integral = [&](double a, double b, double centre_sign) {
-    if (!(b > a)) return 0.0;
-    constexpr int kPanels = 32;
-    double sum = 0;
+std::vector<std::pair<int, double>> blend_shares(const StfModel& m, int b, double u0, double u1) {
+  const double tilt = m.tilt(b);
+  if (m.alpha_blend <= 0) return {{b, tilt_mass(tilt, u0, u1)}};
+  std::vector<std::pair<int, double>> shares;
+  for (int j = std::max(0, b - m.alpha_blend); j <= std::min(m.bins() - 1, b + m.alpha_blend); ++j) shares.emplace_back(j, 0.0);
+  // The weights are linear in u but for their normalisation near the first and last bin, with
+  // kinks only at the bin's middle: Gauss-Legendre on each side, 16 panels, resolves them and
+  // e^{40 u}.
+  int bins[2 * StfModel::kMaxBlend + 1];
+  double weights[2 * StfModel::kMaxBlend + 1];
+  constexpr int kPanels = 16;
+  for (auto [a, z] : {std::pair{u0, std::min(u1, 0.5)}, std::pair{std::max(u0, 0.5), u1}}) {
+    if (!(z > a)) continue;
     for (int p = 0; p < kPanels; ++p)
-      sum += gauss8([&](double u) { return centre_sign * (u - 0.5) * tilt_density(tilt, u); }, a + (b - a) * p / kPanels,
-                    a + (b - a) * (p + 1) / kPanels);
-    return sum;
-  };
-  BlendShares s;
-  s.lower = integral(u0, std::min(u1, 0.5), -1);
-  s.upper = integral(std::max(u0, 0.5), u1, 1);
-  s.own = tilt_mass(tilt, u0, u1) - s.lower - s.upper;
-  return s;
+      for (std::size_t s = 0; s < shares.size(); ++s)
+        shares[s].second += gauss8(
+            [&](double u) {
+              const int n = m.blend_weights(b, u, bins, weights);
+              double w = 0;
+              for (int k = 0; k < n; ++k) w += bins[k] == shares[s].first ? weights[k] : 0.0;
+              return w * tilt_density(tilt, u);
+            },
+            a + (z - a) * p / kPanels, a + (z - a) * (p + 1) / kPanels);
+  }
+  return shares;
 }
 
-std::vector<double> blended_cells(double tilt, const std::vector<double>& own, const std::vector<double>* lower,
-                                  const std::vector<double>* upper) {
-  const BlendShares s = blend_shares(tilt, 0, 1);
-  const double lo = lower ? s.lower : 0, hi = upper ? s.upper : 0, mine = 1 - lo - hi;
-  std::vector<double> p(own.size());
-  for (std::size_t c = 0; c < p.size(); ++c) p[c] = mine * own[c] + (lo > 0 ? lo * (*lower)[c] : 0) + (hi > 0 ? hi * (*upper)[c] : 0);
+std::vector<double> blended_cells(const StfModel& m, int b, const std::vector<std::vector<double>>& cells) {
+  std::vector<double> p(cells[std::size_t(b)].size(), 0.0);
+  for (const auto& [j, share] : blend_shares(m, b, 0, 1))
+    for (std::size_t c = 0; c < p.size(); ++c) p[c] += share * cells[std::size_t(j)][c];
   return p;
 }
 

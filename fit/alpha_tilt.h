@@ -3,7 +3,10 @@
 // (/escape/multiple_sub_half).
 #pragma once
 
+#include <utility>
 #include <vector>
+
+#include "stf/model.h"
 
 #include "table.h"
 
@@ -17,19 +20,14 @@ double tilt_from_counts(const std::vector<double>& edges, const std::vector<doub
 // sub-bin tallies.
 std::vector<double> fit_alpha_tilts(const Table& t, int half = -1);
 
-// Of the tilted density's mass on [u0, u1] of a blended bin (StfModel::alpha_blend), the parts
-// drawn from the bin's own direction density and from its lower and upper neighbours' (weight
-// |u - 1/2| on each side of the middle). They sum to tilt_mass(tilt, u0, u1).
-struct BlendShares {
-  double own = 0, lower = 0, upper = 0;
-};
-BlendShares blend_shares(double tilt, double u0, double u1);
+// Of the smooth part's mass on the area fractions [u0, u1] of bin b, the shares drawn from each
+// bin's direction density: StfModel::blend_weights integrated under the bin's tilted density.
+// (bin, share) pairs that sum to tilt_mass(tilt of b, u0, u1); one pair, (b, mass), unblended.
+std::vector<std::pair<int, double>> blend_shares(const StfModel& m, int b, double u0, double u1);
 
-// The direction distribution over cells of bin b of a blended model: `own` (bin b's) mixed
-// with its neighbours' as blend_shares over the whole bin; a missing neighbour's share stays
-// with `own`.
-std::vector<double> blended_cells(double tilt, const std::vector<double>& own, const std::vector<double>* lower,
-                                  const std::vector<double>* upper);
+// The cell distribution the whole of bin b averages to: the bins' distributions `cells` mixed
+// by blend_shares over [0, 1].
+std::vector<double> blended_cells(const StfModel& m, int b, const std::vector<std::vector<double>>& cells);
 
 // `t`'s sub-bin tallies for its alpha bins grouped by `f` (coarsen_table): the sub-bins of a
 // group's bins, in order, with their edges as fractions of the group's area.

@@ -115,16 +115,14 @@ std::pair<double, std::vector<double>> BinnedModel::bin(int b, const SmoothCells
   for (int a = j * group_; a < b; ++a) below += area_share(reference_, a, group_);
   const double above = std::min(1.0, below + area_share(reference_, b, group_));
   const double smooth = model_.smooth_probability(j);
-  BlendShares s = model_.alpha_blend ? blend_shares(model_.tilt(j), below, above) : BlendShares{tilt_mass(model_.tilt(j), below, above), 0, 0};
-  if (j == 0) s.own += s.lower, s.lower = 0;
-  if (j + 1 == model_.bins()) s.own += s.upper, s.upper = 0;
   std::vector<double> p(reference_.cells, 0.0);
-  for (const auto& [share, bin] : {std::pair{s.own, j}, std::pair{s.lower, j - 1}, std::pair{s.upper, j + 1}}) {
+  double smooth_mass = 0;
+  for (const auto& [bin, share] : blend_shares(model_, j, below, above)) {
+    smooth_mass += smooth * share;
     if (share <= 0) continue;
     const std::vector<double>& cells = smooth_cells(bin);
     for (std::size_t c = 0; c < p.size(); ++c) p[c] += smooth * share * cells[c];
   }
-  const double smooth_mass = smooth * (s.own + s.lower + s.upper);
   double probability = smooth_mass;
   if (b == 0) {
     p[std::size_t(pole_cell_)] += model_.uncollided_probability();

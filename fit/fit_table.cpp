@@ -263,16 +263,17 @@ HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const D
   return best;
 }
 
-// Held-out scores of `flat` (per-bin cell probabilities' logarithms of half-0 fits) with each
-// bin's density blended with its neighbours' as a blended model's bins are (tilts from half 0).
-HeldOut blended_score(const Table& t, const HeldOut& flat) {
-  const std::vector<double> tilts = fit_alpha_tilts(t, 0);
+// Held-out score of `flat` (per-bin cell probabilities' logarithms of half-0 fits) with each
+// bin's density blended as a model of that blend width blends it (tilts from half 0).
+HeldOut blended_score(const Table& t, const HeldOut& flat, int width) {
+  StfModel shape;
+  shape.alpha_probability.assign(std::size_t(t.alpha_bins), 0.0);
+  shape.alpha_tilt = fit_alpha_tilts(t, 0);
+  shape.alpha_blend = width;
   std::vector<std::vector<double>> p(t.alpha_bins), q(t.alpha_bins);
   for (int b = 0; b < t.alpha_bins; ++b)
     for (double l : flat.log_p[b]) p[b].push_back(std::exp(l));
-  for (int b = 0; b < t.alpha_bins; ++b)
-    q[b] = blended_cells(tilts.empty() ? 0.0 : tilts[b], p[b], b > 0 ? &p[b - 1] : nullptr,
-                         b + 1 < t.alpha_bins ? &p[b + 1] : nullptr);
+  for (int b = 0; b < t.alpha_bins; ++b) q[b] = blended_cells(shape, b, p);
   return score(t, 1, q);
 }
 
@@ -356,7 +357,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   int size = s.size;
   ShSmoothing smoothing;
   BinFits chosen_fits;  // on half 0: where the final fit's lobes start
-  bool blend = false;
+  int blend = 0;
   if (s.automatic || s.kind == ModelKind::kSh) {
     std::vector<int> sizes = s.automatic ? auto_candidates(s.kind) : std::vector<int>{s.size};
     std::vector<HeldOut> scores;
@@ -388,10 +389,13 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
     size = sizes[chosen];
     smoothing = ts[chosen];
     chosen_fits = std::move(half_fits[chosen]);
-    // Blending adds no parameter: it is kept where it lowers the held-out NLL.
+    // Blending adds no parameter: the width with the lowest held-out NLL is kept (0: none).
     if (s.automatic && t.alpha_bins > 1) {
-      r.blend_heldout_nll = {scores[chosen].nll, blended_score(t, scores[chosen]).nll};
-      blend = r.blend_heldout_nll[1] < r.blend_heldout_nll[0];
+      r.blend_heldout_nll = {scores[chosen].nll};
+      for (int width = 1; width <= StfModel::kMaxBlend; ++width) {
+        r.blend_heldout_nll.push_back(blended_score(t, scores[chosen], width).nll);
+        if (r.blend_heldout_nll.back() < r.blend_heldout_nll[std::size_t(blend)]) blend = width;
+      }
     }
   }
 

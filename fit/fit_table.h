@@ -49,7 +49,7 @@ struct FitReport {
   std::vector<double> heldout_nll_error; // auto: its standard error against the best
   int chosen_size = 0;
   std::vector<double> family_heldout_nll;  // auto: held-out NLL of the vmf and the sh model
-  // auto: held-out NLL of the chosen size with flat and with blended bins (StfModel::alpha_blend)
+  // auto: held-out NLL of the chosen size per blend width 0 .. kMaxBlend (StfModel::alpha_blend)
   std::vector<double> blend_heldout_nll;
   double smoothing = 0;         // sh: heat-kernel t chosen on the held-out half
   bool lanczos_window = false;  // sh: whether the Lanczos window was chosen there too

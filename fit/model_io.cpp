@@ -37,7 +37,7 @@ void write_model(const StfModel& m, const FitReport& r, const Provenance& p, con
     put_attr(file, "uncollided_fraction", m.uncollided_fraction);
     put_attr(file, "once_fraction", m.once_fraction);
     put_attr(file, "hemispherical", int(m.hemispherical));
-    put_attr(file, "alpha_blend", int(m.alpha_blend));
+    put_attr(file, "alpha_blend", m.alpha_blend);
     put_attr(file, "fit_time_s", r.fit_time_s);
     put_attr(file, "model_bytes", m.packed_bytes());
     put_attr(file, "generator", std::string("stf " STF_VERSION));
@@ -145,7 +145,7 @@ StfModel read_model(const std::string& path) {
     if (version >= 2) m.uncollided_fraction = get_double(file, "uncollided_fraction");
     if (version >= 3) m.once_fraction = get_double(file, "once_fraction");
     m.hemispherical = version >= 3 && has_attr(file, "hemispherical") && get_int(file, "hemispherical") != 0;
-    m.alpha_blend = version >= 4 && has_attr(file, "alpha_blend") && get_int(file, "alpha_blend") != 0;
+    m.alpha_blend = version >= 4 && has_attr(file, "alpha_blend") ? get_int(file, "alpha_blend") : 0;
     m.alpha_probability = get_dataset(file, "/alpha/probability", {});
     const hsize_t bins = m.alpha_probability.size();
     m.alpha_edges = get_dataset(file, "/alpha/edges", {bins + 1});

@@ -130,6 +130,23 @@ namespace {
 bool finite_in(double v, double lo, double hi) { return std::isfinite(v) && v >= lo && v <= hi; }
 }  // namespace
 
+int StfModel::blend_weights(int b, double u, int* blend_bins, double* weights) const {
+  if (alpha_blend <= 0) {
+    blend_bins[0] = b, weights[0] = 1;
+    return 1;
+  }
+  const double x = b + u, h = alpha_blend;
+  int n = 0;
+  double total = 0;
+  for (int j = std::max(0, b - alpha_blend); j <= std::min(bins() - 1, b + alpha_blend); ++j) {
+    const double k = 1 - std::abs(x - j - 0.5) / h;
+    if (k <= 0) continue;
+    blend_bins[n] = j, weights[n] = k, total += k, ++n;
+  }
+  for (int i = 0; i < n; ++i) weights[i] /= total;
+  return n;
+}
+
 std::string model_error(const StfModel& m) {
   const int bins = m.bins();
   if (bins < 1) return "no alpha bins";
@@ -150,6 +167,7 @@ std::string model_error(const StfModel& m) {
   if (std::abs(total - 1) > 1e-6) return "alpha probabilities do not sum to 1";
   if (!finite_in(m.once_fraction, 0, 1)) return "once-scattered fraction must be in [0, 1]";
   if (!m.alpha_tilt.empty() && int(m.alpha_tilt.size()) != bins) return "alpha tilts of the wrong count";
+  if (m.alpha_blend < 0 || m.alpha_blend > StfModel::kMaxBlend) return "alpha blend out of range [0, 3]";
   for (double t : m.alpha_tilt)
     if (!finite_in(t, -kMaxTilt, kMaxTilt)) return "alpha tilt out of range [-40, 40]";
   if (!finite_in(m.uncollided_fraction, 0, m.alpha_probability[0] * (1 + 1e-9)))

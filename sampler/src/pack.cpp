@@ -106,7 +106,7 @@ std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries) {
     payload.align4();
     for (std::uint32_t v : {std::uint32_t(kind), bins, size, std::uint32_t(m.sh_nz)}) payload.put(v);
     payload.put(std::int32_t(m.alpha_degree));
-    payload.put(std::uint32_t((m.hemispherical ? 1 : 0) | (m.alpha_blend ? 2 : 0)));  // flags
+    payload.put(std::uint32_t((m.hemispherical ? 1 : 0) | (std::uint32_t(m.alpha_blend) << 1)));  // flags
     for (double v : {m.tau, m.albedo, m.g, m.escape_probability, m.absorbed_fraction, m.truncated_fraction,
                      m.uncollided_fraction, m.once_fraction})
       payload.put(v);
@@ -167,9 +167,10 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
 
   StfModel& m = e.model;
   m.kind = kind == 0 ? ModelKind::kVmf : ModelKind::kSh;
-  if ((version == 3 && flags > 1) || (version >= 4 && flags > 3)) return fail(error, "unknown model flags");
+  if ((version == 3 && flags > 1) || (version >= 4 && (flags >> 1) > std::uint32_t(StfModel::kMaxBlend)))
+    return fail(error, "unknown model flags");
   m.hemispherical = version >= 3 && kind == 0 && (flags & 1);
-  m.alpha_blend = version >= 4 && (flags & 2);
+  m.alpha_blend = version >= 4 ? int(flags >> 1) : 0;
   m.tau = r.get<double>(), m.albedo = r.get<double>(), m.g = r.get<double>();
   m.escape_probability = r.get<double>(), m.absorbed_fraction = r.get<double>(), m.truncated_fraction = r.get<double>();
   if (version >= 2) m.uncollided_fraction = r.get<double>();

@@ -145,14 +145,16 @@ ExitSample ShellSampler::draw(double u0, double u1, double u2, double u3, int& b
   double cos_alpha = c0 + u * (c1 - c0), sin_alpha = std::sqrt(std::max(0.0, 1 - cos_alpha * cos_alpha));
   double cb, sb;
   sincos_2pi(u1, sb, cb);  // beta = 2 pi u1
-  // A blended bin: the neighbour's density with probability w, decided by u2's lowest part.
-  double w;
-  const int neighbour = model_.blend_neighbour(bin, u, w);
-  if (w > 0 && u2 < w) {
-    local = sample_direction(neighbour, u2 / w, u3);
-  } else {
-    local = sample_direction(bin, w > 0 ? std::min((u2 - w) / (1 - w), std::nextafter(1.0, 0.0)) : u2, u3);
-  }
+  // A blended bin: one of the blended densities by weight, picked with u2 and its remainder
+  // reused for the direction.
+  int blend_bins[2 * StfModel::kMaxBlend + 1];
+  double weights[2 * StfModel::kMaxBlend + 1];
+  const int n = model_.blend_weights(bin, u, blend_bins, weights);
+  int k = 0;
+  double below = 0;
+  while (k + 1 < n && u2 >= below + weights[k]) below += weights[k++];
+  const double rest = n > 1 ? std::clamp((u2 - below) / weights[k], 0.0, std::nextafter(1.0, 0.0)) : u2;
+  local = sample_direction(blend_bins[k], rest, u3);
   s.point = {sin_alpha * cb, sin_alpha * sb, cos_alpha};
   s.direction = rotate_z(local, cb, sb);
   return s;
@@ -178,10 +180,12 @@ double ShellSampler::smooth_pdf(int bin, double cos_alpha, const Vec3& local) co
   const double c0 = cos_edges_[bin], c1 = cos_edges_[bin + 1];
   const double u = std::clamp((c0 - cos_alpha) / (c0 - c1), 0.0, 1.0);
   const double point = model_.smooth_probability(bin) / (2 * kPi * (c0 - c1)) * tilt_density(model_.tilt(bin), u);
-  double w;
-  const int neighbour = model_.blend_neighbour(bin, u, w);
-  const double own = direction_pdf(bin, local);
-  return point * (w > 0 ? (1 - w) * own + w * direction_pdf(neighbour, local) : own);
+  int blend_bins[2 * StfModel::kMaxBlend + 1];
+  double weights[2 * StfModel::kMaxBlend + 1];
+  const int n = model_.blend_weights(bin, u, blend_bins, weights);
+  double direction = 0;
+  for (int k = 0; k < n; ++k) direction += weights[k] * direction_pdf(blend_bins[k], local);
+  return point * direction;
 }
 
 namespace {

@@ -121,7 +121,7 @@ TEST(OnceScattered, FullSamplerWithEveryPartMatchesTheBinnedModelChiSquare) {
   model.uncollided_fraction = 0.4 * model.alpha_probability[0];
   model.once_fraction = 0.3;
   model.alpha_tilt = {-2.5, 1.0, 0.3, 0.0, -0.7, 4.0};  // spread over 3x finer bins as the sampler spreads them
-  model.alpha_blend = true;                             // with the directions of the neighbours blended in
+  model.alpha_blend = 2;                                // with the directions of the neighbours blended in
   ASSERT_EQ(model_error(model), "");
   ShellSampler s(model);
   for (int f : {1, 3}) {

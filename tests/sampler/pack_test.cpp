@@ -64,7 +64,7 @@ TEST(Pack, VersionTwoPacksStillLoad) {
   const StfModel& v2 = out[0].model;
   EXPECT_EQ(v2.once_fraction, 0);
   EXPECT_TRUE(v2.alpha_tilt.empty());
-  EXPECT_FALSE(v2.alpha_blend);
+  EXPECT_EQ(v2.alpha_blend, 0);
   EXPECT_EQ(v2.uncollided_fraction, m.uncollided_fraction);
   ASSERT_EQ(v2.vmf.size(), m.vmf.size());
   for (std::size_t i = 0; i < m.vmf.size(); ++i) {
@@ -86,7 +86,7 @@ TEST(Pack, RoundTripKeepsModelsToFloatPrecision) {
   in[2].model.hemispherical = true;
   in[2].model.rebuild_lobe_norms();
   in[0].model.once_fraction = 0.25;
-  in[0].model.alpha_blend = true;
+  in[0].model.alpha_blend = 3;
   in[0].model.alpha_tilt = {-2.5, 1.0, 0.3, 0.0, -0.7, 4.0};
   in[0].model.uncollided_fraction = 0.1 * in[0].model.alpha_probability[0];
   std::vector<PackEntry> out = round_trip(in);
@@ -94,8 +94,8 @@ TEST(Pack, RoundTripKeepsModelsToFloatPrecision) {
   EXPECT_EQ(out[0].name, "milk");
   EXPECT_TRUE(out[2].model.hemispherical);
   EXPECT_FALSE(out[0].model.hemispherical);
-  EXPECT_TRUE(out[0].model.alpha_blend);
-  EXPECT_FALSE(out[1].model.alpha_blend);
+  EXPECT_EQ(out[0].model.alpha_blend, 3);
+  EXPECT_EQ(out[1].model.alpha_blend, 0);
   ASSERT_EQ(out[0].model.alpha_tilt.size(), 6u);
   for (int b = 0; b < 6; ++b) EXPECT_NEAR(out[0].model.alpha_tilt[b], in[0].model.alpha_tilt[b], 1e-6);
   // One header; each record as packed_bytes() reports it, plus its name padded to 4 bytes.

@@ -94,9 +94,9 @@ StfModel tilted(StfModel m) {
   return m;
 }
 
-// Bins blended with their neighbours (StfModel::alpha_blend).
-StfModel blended(StfModel m) {
-  m.alpha_blend = true;
+// Bins blended with their neighbours over `width` bins (StfModel::alpha_blend).
+StfModel blended(StfModel m, int width = 1) {
+  m.alpha_blend = width;
   return m;
 }
 
@@ -133,7 +133,8 @@ TEST(Sampler, FullSampleMatchesPdfChiSquare) {
                                hemispherical(with_uncollided(test::make_vmf_model())),
                                tilted(with_uncollided(test::make_vmf_model())), tilted(test::make_sh_model()),
                                blended(tilted(hemispherical(with_uncollided(test::make_vmf_model())))),
-                               blended(test::make_sh_model())}) {
+                               blended(test::make_sh_model()), blended(tilted(test::make_vmf_model()), 2),
+                               blended(tilted(test::make_vmf_model()), 3)}) {
     ShellSampler s(model);
     const int bins = model.bins(), sub = 3, quarters = 4, n = 600000;
     AxisBins dir({0, 0, 1}, 2.0);
@@ -141,8 +142,8 @@ TEST(Sampler, FullSampleMatchesPdfChiSquare) {
     dir.n_phi = 4;
     // Expected: P(bin) * P(area part k of the band) * 1/4 (beta) * P(direction cell | bin, part),
     // with P(part k) the integral of the tilted density over it (1/sub untilted); in blended
-    // bins the direction density at area fraction v is (1 - |v - 1/2|) times the bin's plus
-    // |v - 1/2| times the neighbour's on v's side (none beyond the first and last bin).
+    // bins of width h the direction density at area fraction v mixes the bins j by the hats
+    // max(0, 1 - |b + v - j - 1/2| / h), normalised over the bins that exist.
     std::vector<std::vector<double>> d(bins);
     for (int b = 0; b < bins; ++b) d[b] = dir.expected([&](const Vec3& w) { return s.direction_pdf(b, w); });
     std::vector<double> expected, observed(bins * sub * quarters * dir.bins() + 1, 0);
@@ -150,16 +151,22 @@ TEST(Sampler, FullSampleMatchesPdfChiSquare) {
       const double smooth = model.alpha_probability[b] - (b == 0 ? model.uncollided_fraction : 0);
       for (int k = 0; k < sub * quarters; ++k) {
         const double v0 = double(k / quarters) / sub, v1 = double(k / quarters + 1) / sub;
-        auto part = [&](auto weight) {
-          return integrate([&](double v) { return weight(v) * tilt_density(model.tilt(b), v); }, v0, v1, 64);
+        const int h = model.alpha_blend;
+        auto hat = [&](int j, double v) {
+          if (h == 0) return j == b ? 1.0 : 0.0;
+          double total = 0;
+          for (int i = 0; i < bins; ++i) total += std::max(0.0, 1 - std::abs(b + v - i - 0.5) / h);
+          return std::max(0.0, 1 - std::abs(b + v - j - 0.5) / h) / total;
         };
-        const bool lower = model.alpha_blend && b > 0, upper = model.alpha_blend && b + 1 < bins;
-        const double to_lower = lower ? part([](double v) { return v < 0.5 ? 0.5 - v : 0.0; }) : 0.0;
-        const double to_upper = upper ? part([](double v) { return v > 0.5 ? v - 0.5 : 0.0; }) : 0.0;
-        const double own = part([](double) { return 1.0; }) - to_lower - to_upper;
-        for (std::size_t c = 0; c < d[b].size(); ++c)
-          expected.push_back(n * smooth / quarters *
-                             (own * d[b][c] + (lower ? to_lower * d[b - 1][c] : 0) + (upper ? to_upper * d[b + 1][c] : 0)));
+        std::vector<double> mix(d[b].size(), 0.0);
+        for (int j = 0; j < bins; ++j) {
+          // Both sides of the bin's middle apart: the hats have their kinks there.
+          double share = 0;
+          for (auto [a, z] : {std::pair{v0, std::min(v1, 0.5)}, std::pair{std::max(v0, 0.5), v1}})
+            if (z > a) share += integrate([&](double v) { return hat(j, v) * tilt_density(model.tilt(b), v); }, a, z, 64);
+          for (std::size_t c = 0; c < mix.size(); ++c) mix[c] += share * d[j][c];
+        }
+        for (double p : mix) expected.push_back(n * smooth / quarters * p);
       }
     }
     expected.push_back(n * model.uncollided_fraction);
@@ -193,7 +200,7 @@ TEST(Sampler, FullSampleMatchesPdfChiSquare) {
 TEST(Sampler, PdfOfASampleIsTheReturnedPdf) {
   for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model()),
                                hemispherical(with_uncollided(test::make_vmf_model())), tilted(test::make_vmf_model()),
-                               blended(tilted(test::make_vmf_model()))}) {
+                               blended(tilted(test::make_vmf_model())), blended(tilted(test::make_vmf_model()), 3)}) {
     ShellSampler s(model);
     Uniforms u{54};
     for (int i = 0; i < 20000; ++i) {
@@ -243,7 +250,8 @@ TEST(Sampler, PdfIntegratesToOne) {
 // (any beta), directions in the upper hemisphere: |A| = 2 pi (cos a1 - cos a3) * 2 pi.
 // With tilted bins the pdf varies with the exit point inside a band; the measure does not.
 TEST(Sampler, InversePdfRecoversTheMeasureOfRegions) {
-  for (const StfModel& model : {test::make_vmf_model(), tilted(test::make_vmf_model()), blended(tilted(test::make_vmf_model()))}) {
+  for (const StfModel& model : {test::make_vmf_model(), tilted(test::make_vmf_model()), blended(tilted(test::make_vmf_model())),
+                                blended(tilted(test::make_vmf_model()), 2)}) {
     ShellSampler s(model);
     const StfModel& m = s.model();
     const double measure = 2 * kPi * (std::cos(m.alpha_edges[1]) - std::cos(m.alpha_edges[3])) * 2 * kPi;
@@ -260,7 +268,7 @@ TEST(Sampler, InversePdfRecoversTheMeasureOfRegions) {
     }
     double mean = sum / n, error = std::sqrt((sum2 / n - mean * mean) / n);
     EXPECT_NEAR(mean, measure, 6 * error) << "standard error " << error << (m.alpha_tilt.empty() ? "" : ", tilted")
-                                          << (m.alpha_blend ? ", blended" : "");
+                                          << ", blend " << m.alpha_blend;
   }
 }
 

@@ -46,11 +46,13 @@ struct StfModel {
   // in u, the bin's area fraction from its lower edge (stf/tilt.h); empty: uniform in area
   // (format versions before 4).
   std::vector<double> alpha_tilt;
-  // Blended bins (format version 4): at area fraction u of bin b the smooth part's direction
-  // density is (1 - w) p_b + w p_n, with w = |u - 1/2| and n the neighbour on u's side (b - 1
-  // below the bin's middle, b + 1 above; w = 0 where there is none): the densities change
-  // linearly across a bin instead of jumping at its edges. blend_neighbour() gives (n, w).
-  bool alpha_blend = false;
+  // Blended bins (format version 4): at area fraction u of bin b, at x = b + u in bin units,
+  // the smooth part's direction density is sum_j k_j p_j over the bins j with k_j = 1 - |x -
+  // j - 1/2| / h > 0, normalised to sum 1, h = alpha_blend. 0: no blending; 1: the densities
+  // change linearly between neighbouring bin centres (at u = 1/2 the bin's own alone); 2, 3:
+  // smoothed over more bins. blend_weights() gives the bins and weights.
+  int alpha_blend = 0;
+  static constexpr int kMaxBlend = 3;
   std::vector<BinStatus> status;          // [bins]
 
   // kVmf: `lobes` lobes per bin, [bins * lobes].
@@ -77,12 +79,9 @@ struct StfModel {
 
   int bins() const { return int(alpha_probability.size()); }
   double tilt(int b) const { return alpha_tilt.empty() ? 0.0 : alpha_tilt[std::size_t(b)]; }
-  // The neighbour whose density is blended in at area fraction u of bin b, and its weight.
-  int blend_neighbour(int b, double u, double& weight) const {
-    const int n = u < 0.5 ? b - 1 : b + 1;
-    weight = alpha_blend && n >= 0 && n < bins() ? std::abs(u - 0.5) : 0.0;
-    return weight > 0 ? n : b;
-  }
+  // The bins whose direction densities are blended at area fraction u of bin b, and their
+  // weights (summing to 1); returns how many (at most 2 kMaxBlend + 1).
+  int blend_weights(int b, double u, int* blend_bins, double* weights) const;
   // Shares of all escapes: the uncollided delta, and the smooth (fitted) part in alpha bin b.
   double uncollided_probability() const { return (1 - once_fraction) * uncollided_fraction; }
   double smooth_probability(int b) const {

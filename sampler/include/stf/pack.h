@@ -7,7 +7,7 @@
 //     u32 record bytes, u32 name bytes, name (UTF-8, no terminator),
 //     u32 kind (0 vmf, 1 sh), u32 bins, u32 lobes or band limit, u32 SH table nz,
 //     i32 alpha degree (-1: none), u32 flags (version >= 3; bit 0: hemispherical vMF lobes;
-//         bit 1 (version >= 4): blended alpha bins; reserved before),
+//         bits 1-2 (version >= 4): the alpha blend width, 0-3; reserved before),
 //     f64 tau, albedo, g, escape probability, absorbed fraction, truncated fraction,
 //         uncollided fraction (version >= 2), once-scattered fraction (version >= 3),
 //     f32 alpha probability [bins], u8 bin status [bins] padded to 4 bytes,
