@@ -1,6 +1,6 @@
 // Sampler speed: ns per full sample (alpha, direction, beta, pdf) and per pdf evaluation for
-// vmf:1/4/8 and sh:8/16 models of 90 alpha bins, against a bare single-lobe vMF sample
-// measured in the same run. Google Benchmark prints its table; the summary with the ratios
+// vmf:1/4/8 and sh:8/16 models of 90 alpha bins, and vmf:8 with tilted bins blended over 1 and
+// 3 bins, against a bare single-lobe vMF sample measured in the same run. Google Benchmark prints its table; the summary with the ratios
 // is JSON on stdout (and in --out FILE).
 //   sampler_bench [--out FILE] [google benchmark flags]
 #include <benchmark/benchmark.h>
@@ -26,8 +26,12 @@ struct Uniforms {
   double operator()() { return double(splitmix64(state) >> 11) * 0x1p-53; }
 };
 
-StfModel model(ModelKind kind, int size) {
+StfModel model(ModelKind kind, int size, int blend = -1) {
   StfModel m;
+  if (blend >= 0) {
+    m.alpha_tilt.assign(90, -0.8);  // crowding towards each bin's lower edge
+    m.alpha_blend = blend;
+  }
   m.kind = kind;
   m.tau = 10, m.albedo = 1, m.escape_probability = 1;
   const int bins = 90;
@@ -60,14 +64,14 @@ void BareVmfLobe(benchmark::State& state) {
 }
 BENCHMARK(BareVmfLobe);
 
-void Sample(benchmark::State& state, ModelKind kind, int size) {
-  ShellSampler s(model(kind, size));
+void Sample(benchmark::State& state, ModelKind kind, int size, int blend = -1) {
+  ShellSampler s(model(kind, size, blend));
   Uniforms u;
   for (auto _ : state) benchmark::DoNotOptimize(s.sample(u(), u(), u(), u()));
 }
 
-void Pdf(benchmark::State& state, ModelKind kind, int size) {
-  ShellSampler s(model(kind, size));
+void Pdf(benchmark::State& state, ModelKind kind, int size, int blend = -1) {
+  ShellSampler s(model(kind, size, blend));
   Uniforms u;
   std::vector<ExitSample> points;
   for (int i = 0; i < 1024; ++i) points.push_back(s.sample(u(), u(), u(), u()));
@@ -83,11 +87,15 @@ BENCHMARK_CAPTURE(Sample, vmf4, ModelKind::kVmf, 4);
 BENCHMARK_CAPTURE(Sample, vmf8, ModelKind::kVmf, 8);
 BENCHMARK_CAPTURE(Sample, sh8, ModelKind::kSh, 8);
 BENCHMARK_CAPTURE(Sample, sh16, ModelKind::kSh, 16);
+BENCHMARK_CAPTURE(Sample, vmf8_blend1, ModelKind::kVmf, 8, 1);
+BENCHMARK_CAPTURE(Sample, vmf8_blend3, ModelKind::kVmf, 8, 3);
 BENCHMARK_CAPTURE(Pdf, vmf1, ModelKind::kVmf, 1);
 BENCHMARK_CAPTURE(Pdf, vmf4, ModelKind::kVmf, 4);
 BENCHMARK_CAPTURE(Pdf, vmf8, ModelKind::kVmf, 8);
 BENCHMARK_CAPTURE(Pdf, sh8, ModelKind::kSh, 8);
 BENCHMARK_CAPTURE(Pdf, sh16, ModelKind::kSh, 16);
+BENCHMARK_CAPTURE(Pdf, vmf8_blend1, ModelKind::kVmf, 8, 1);
+BENCHMARK_CAPTURE(Pdf, vmf8_blend3, ModelKind::kVmf, 8, 3);
 
 // Keeps each benchmark's ns per iteration for the summary.
 class Collect : public benchmark::ConsoleReporter {
@@ -119,11 +127,12 @@ int main(int argc, char** argv) {
   const double bare = collect.ns["BareVmfLobe"];
   std::ostringstream json;
   json << "{\n  \"bare_single_lobe_vmf_ns\": " << bare << ",\n  \"models\": [\n";
-  const char* names[] = {"vmf1", "vmf4", "vmf8", "sh8", "sh16"};
-  for (int i = 0; i < 5; ++i) {
+  const char* names[] = {"vmf1", "vmf4", "vmf8", "sh8", "sh16", "vmf8_blend1", "vmf8_blend3"};
+  constexpr int kModels = 7;
+  for (int i = 0; i < kModels; ++i) {
     double s = collect.ns[std::string("Sample/") + names[i]], p = collect.ns[std::string("Pdf/") + names[i]];
     json << "    {\"model\": \"" << names[i] << "\", \"sample_ns\": " << s << ", \"pdf_ns\": " << p
-         << ", \"sample_vs_bare\": " << s / bare << "}" << (i < 4 ? ",\n" : "\n");
+         << ", \"sample_vs_bare\": " << s / bare << "}" << (i + 1 < kModels ? ",\n" : "\n");
   }
   json << "  ]\n}\n";
   std::fputs(json.str().c_str(), stdout);

@@ -23,6 +23,7 @@ struct FitOptions {
   std::string table, model = "vmf:4", output, report, pack;
   std::string threads = "0";
   int alpha_degree = -1;
+  int max_blend = StfModel::kMaxBlend;
   double tolerance = 0;
   std::string heldout;
   bool quiet = false;
@@ -103,6 +104,8 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
     fail("--tolerance must be a TV distance in (0, 1), got " + std::to_string(o.tolerance));
   if (!o.heldout.empty() && !cmd.count("--tolerance")) fail("--heldout applies only with --tolerance");
   settings.alpha_degree = o.alpha_degree;
+  if (o.max_blend < 0 || o.max_blend > StfModel::kMaxBlend) fail("--max-blend must be in 0..3");
+  settings.max_blend = o.max_blend;
 
   // Every output is checked (and claimed) before any work.
   std::vector<NamedFile> files{{o.table, "the table"}, {o.heldout, "--heldout"}};
@@ -175,6 +178,9 @@ void add_fit_command(CLI::App& app) {
   cmd->add_option("--threads", o->threads, "Worker threads (0: all cores)")->capture_default_str();
   cmd->add_option("--alpha-degree", o->alpha_degree,
                   "sh: store each coefficient as a Chebyshev series of this degree in cos(alpha)")
+      ->capture_default_str();
+  cmd->add_option("--max-blend", o->max_blend,
+                  "auto sizes: widest alpha blend to try, 0-3 (a pdf sums up to 2 K + 1 bins' densities)")
       ->capture_default_str();
   cmd->add_option("--tolerance", o->tolerance,
                   "Target TV distance: fewest alpha bins, coarsest grid and smallest size that are certified within it");

@@ -392,7 +392,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
     // Blending adds no parameter: the width with the lowest held-out NLL is kept (0: none).
     if (s.automatic && t.alpha_bins > 1) {
       r.blend_heldout_nll = {scores[chosen].nll};
-      for (int width = 1; width <= StfModel::kMaxBlend; ++width) {
+      for (int width = 1; width <= s.max_blend; ++width) {
         r.blend_heldout_nll.push_back(blended_score(t, scores[chosen], width).nll);
         if (r.blend_heldout_nll.back() < r.blend_heldout_nll[std::size_t(blend)]) blend = width;
       }

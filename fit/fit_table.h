@@ -20,6 +20,7 @@ struct FitSettings {
   int threads = 0;         // 0: all cores; results do not depend on it
   int min_escapes = 10;    // bins with fewer escapes borrow their neighbour's model
   int alpha_degree = -1;   // sh: >= 0 replaces the bins' coefficients by a Chebyshev series in cos(alpha)
+  int max_blend = StfModel::kMaxBlend;  // auto: the widest alpha blend tried (StfModel::alpha_blend)
   // When set (e.g. by Ctrl-C), no further bin is started and fit_table returns early with a
   // model that must be thrown away.
   const std::atomic<bool>* cancel = nullptr;

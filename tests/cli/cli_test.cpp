@@ -177,6 +177,7 @@ TEST_F(Cli, FitAndEvalRejectBadInput) {
   const BadInput cases[] = {
       {"fit " + out("t.h5") + " --model vmf:0 -o " + out("m.h5"), "--model"},
       {"fit " + out("t.h5") + " --model gauss:3 -o " + out("m.h5"), "--model"},
+      {"fit " + out("t.h5") + " --model hvmf:auto --max-blend 4 -o " + out("m.h5"), "--max-blend"},
       {"fit " + out("missing.h5") + " -o " + out("m.h5"), "missing.h5"},
       {"fit " + out("t.h5") + " -o /nonexistent-folder/m.h5", "-o"},
       {"eval " + out("t.h5") + " --reference " + out("other.h5"), "--reference"},
