@@ -101,7 +101,8 @@ BinnedModel::BinnedModel(const StfModel& model, const Table& reference, const Di
 const std::vector<double>& SmoothCellCache::operator()(int j) {
   for (const auto& [bin, cells] : kept_)
     if (bin == j) return cells;
-  if (kept_.size() >= 3) kept_.erase(kept_.begin());
+  // A reference bin needs its model bin and the 2 alpha_blend bins around it.
+  if (kept_.size() >= std::size_t(2 * model_.alpha_blend + 1)) kept_.erase(kept_.begin());
   kept_.emplace_back(j, smooth_cell_probabilities(model_, j, levels_));
   return kept_.back().second;
 }

@@ -69,7 +69,7 @@ class BinnedModel {
 };
 
 // Smooth cell probabilities of model bins as BinnedModel::bin asks for them, in ascending order
-// of the reference bins: each computed once, at most three kept.
+// of the reference bins: each computed once, as many kept as one reference bin needs.
 class SmoothCellCache {
  public:
   SmoothCellCache(const StfModel& model, const QuadratureLevels& levels) : model_(model), levels_(levels) {}

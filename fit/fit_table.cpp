@@ -263,18 +263,21 @@ HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const D
   return best;
 }
 
-// Held-out score of `flat` (per-bin cell probabilities' logarithms of half-0 fits) with each
-// bin's density blended as a model of that blend width blends it (tilts from half 0).
-HeldOut blended_score(const Table& t, const HeldOut& flat, int width) {
+// Held-out NLL of the half-0 fits behind `flat` (its per-bin cell log-probabilities) with each
+// bin's density blended as a model of each width 0 .. max_width blends it (tilts from half 0).
+std::vector<double> blended_nll(const Table& t, const HeldOut& flat, int max_width) {
   StfModel shape;
   shape.alpha_probability.assign(std::size_t(t.alpha_bins), 0.0);
   shape.alpha_tilt = fit_alpha_tilts(t, 0);
-  shape.alpha_blend = width;
   std::vector<std::vector<double>> p(t.alpha_bins), q(t.alpha_bins);
   for (int b = 0; b < t.alpha_bins; ++b)
     for (double l : flat.log_p[b]) p[b].push_back(std::exp(l));
-  for (int b = 0; b < t.alpha_bins; ++b) q[b] = blended_cells(shape, b, p);
-  return score(t, 1, q);
+  std::vector<double> nll{flat.nll};
+  for (shape.alpha_blend = 1; shape.alpha_blend <= max_width; ++shape.alpha_blend) {
+    for (int b = 0; b < t.alpha_bins; ++b) q[b] = blended_cells(shape, b, p);
+    nll.push_back(score(t, 1, q).nll);
+  }
+  return nll;
 }
 
 // Area-uniform alpha marginal: for a model of nothing escaping.
@@ -391,11 +394,8 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
     chosen_fits = std::move(half_fits[chosen]);
     // Blending adds no parameter: the width with the lowest held-out NLL is kept (0: none).
     if (s.automatic && t.alpha_bins > 1) {
-      r.blend_heldout_nll = {scores[chosen].nll};
-      for (int width = 1; width <= s.max_blend; ++width) {
-        r.blend_heldout_nll.push_back(blended_score(t, scores[chosen], width).nll);
-        if (r.blend_heldout_nll.back() < r.blend_heldout_nll[std::size_t(blend)]) blend = width;
-      }
+      r.blend_heldout_nll = blended_nll(t, scores[chosen], s.max_blend);
+      blend = int(std::min_element(r.blend_heldout_nll.begin(), r.blend_heldout_nll.end()) - r.blend_heldout_nll.begin());
     }
   }
 
