@@ -1,0 +1,122 @@
+// How fast could strides be? An upper bound on `stf render`'s speed-up that no model or
+// faster sampler can beat: camera paths of the render scene are followed with *ideal*
+// strides, where the jump through each sphere is the true transport (a brute-force walk
+// inside the sphere, whose collisions are not counted) instead of a draw from a model. What is
+// left is the work strides cannot remove: the collisions in the boundary shell where no
+// sphere fits, and the number of strides. For a stride that costs c collisions the speed-up is
+//   brute collisions / (shell collisions + c strides),
+// at most brute / shell for free strides. Reported per optical radius tau and smallest sphere
+// (spheres from it up by a constant ratio: 2, as `stf render` packs them, sqrt 2, 2^(1/4), or
+// 1 for any radius down to it), with the stride cost at which a 10x speed-up would need strides to come. Counts are per
+// path that hits the sphere, over the scene's whole image. JSON on stdout.
+//   stride_bound [HITTING_PATHS]
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <vector>
+
+#include "pixel_rng.h"
+#include "scene.h"
+#include "tracer.h"
+
+namespace {
+
+using stf::Vec3;
+using stf::render::CollisionWalk;
+using stf::render::PixelRng;
+
+struct Counts {
+  double collisions = 0, strides = 0;
+};
+
+// Spheres of optical radius r_min * ratio^k (any radius >= r_min when ratio is 1).
+struct Radii {
+  double r_min, ratio;
+  // The largest optical radius that fits in `free_tau`, 0 when none does.
+  double fit(double free_tau) const {
+    if (free_tau < r_min) return 0;
+    if (ratio == 1) return free_tau;
+    return r_min * std::pow(ratio, std::floor(std::log(free_tau / r_min) / std::log(ratio) + 1e-12));
+  }
+};
+
+// The true exit of a path that starts at the centre of the sphere of optical radius r about
+// x, heading w (a walk whose collisions a stride would not make); throughput takes the
+// albedo at each collision, as a stride's escape probability does on average.
+void ideal_stride(const stf::Medium& m, double r, Vec3& x, Vec3& w, double& throughput, PixelRng& rng) {
+  stf::Medium sphere = m;
+  sphere.radius = r / m.sigma_t();
+  const CollisionWalk walk(sphere);
+  Vec3 y{0, 0, 0};
+  while (!walk.leaves_after_flight(y, w, throughput, rng)) {
+  }
+  // Where the walk crossed the sphere: back along w from y to radius r / sigma_t.
+  const double b = stf::dot(y, w), c = stf::dot(y, y) - sphere.radius * sphere.radius;
+  const double back = b - std::sqrt(std::max(0.0, b * b - c));  // y - back w is on the sphere
+  x = {x.x + y.x - back * w.x, x.y + y.y - back * w.y, x.z + y.z - back * w.z};
+}
+
+// One camera path through the medium; `radii` null is brute force.
+Counts follow(const stf::Medium& m, const Radii* radii, Vec3 x, Vec3 w, PixelRng& rng) {
+  const CollisionWalk walk(m);
+  Counts n;
+  double throughput = 1;
+  for (;;) {
+    const double free_tau = m.sigma_t() * (m.radius - stf::length(x));
+    const double r = radii ? radii->fit(free_tau) : 0;
+    if (r > 0) {
+      ideal_stride(m, r, x, w, throughput, rng);
+      ++n.strides;
+    } else {
+      if (walk.leaves_after_flight(x, w, throughput, rng)) return n;
+      ++n.collisions;
+    }
+    if (!stf::render::survives_roulette(throughput, rng)) return n;
+  }
+}
+
+// Mean counts per hitting path over `paths` camera rays through uniform image positions.
+Counts per_path(const stf::Medium& m, const Radii* radii, long paths) {
+  Counts sum;
+  long hits = 0;
+  for (long p = 0; hits < paths; ++p) {
+    PixelRng rng(7, std::uint64_t(p));
+    const stf::render::Ray ray = stf::render::camera_ray(64 * rng.uniform(), 64 * rng.uniform(), 64, 64, m.radius);
+    Vec3 entry;
+    if (!stf::render::enter_sphere(ray, m.radius, entry)) continue;
+    const Counts n = follow(m, radii, entry, ray.direction, rng);
+    sum.collisions += n.collisions, sum.strides += n.strides;
+    ++hits;
+  }
+  return {sum.collisions / double(hits), sum.strides / double(hits)};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const long paths = argc > 1 ? std::atol(argv[1]) : 20000;
+  std::printf("[\n");
+  bool first = true;
+  for (const double tau : {10.0, 30.0, 100.0, 300.0}) {
+    stf::Medium m;
+    m.sigma_s = 99.9, m.sigma_a = 0.1, m.g = 0.8, m.radius = tau / 100;
+    const double brute = per_path(m, nullptr, paths).collisions;
+    for (const double ratio : {2.0, std::sqrt(2.0), std::sqrt(std::sqrt(2.0)), 1.0})
+      for (const double r_min : {1.0, 2.0, 4.0, 8.0}) {
+        const Radii radii{r_min, ratio};
+        const Counts n = per_path(m, &radii, paths);
+        const double free_bound = brute / n.collisions;
+        // The stride cost, in collisions, at which the speed-up would be 10 (negative: never).
+        const double cost_for_10x = (brute / 10 - n.collisions) / n.strides;
+        std::printf("%s  {\"tau\": %g, \"smallest_sphere_tau\": %g, \"radius_ratio\": %.4f, \"brute_collisions\": %.2f, "
+                    "\"shell_collisions\": %.2f, \"strides\": %.2f, \"speedup_free_strides\": %.2f, "
+                    "\"stride_cost_for_10x\": %.3f}",
+                    first ? "" : ",\n", tau, r_min, ratio, brute, n.collisions,
+                    n.strides, free_bound, cost_for_10x);
+        first = false;
+        std::fflush(stdout);
+      }
+  }
+  std::printf("\n]\n");
+  return 0;
+}
