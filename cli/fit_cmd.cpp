@@ -24,6 +24,7 @@ struct FitOptions {
   std::string threads = "0";
   int alpha_degree = -1;
   int max_blend = StfModel::kMaxBlend;
+  bool no_pooling = false;
   double tolerance = 0;
   std::string heldout;
   bool quiet = false;
@@ -40,6 +41,13 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
     s << ", \"alpha_blend\": " << m.alpha_blend << ", \"blend_heldout_nll\": [";
     for (std::size_t i = 0; i < r.blend_heldout_nll.size(); ++i) s << (i ? ", " : "") << r.blend_heldout_nll[i];
     s << "]";
+  }
+  if (!r.pool_sizes.empty()) {
+    s << ", \"neighbour_weight\": " << r.neighbour_weight << ", \"pool_heldout_nll\": {\"unpooled\": "
+      << r.pool_heldout_nll[0];
+    for (std::size_t i = 0; i < r.pool_sizes.size(); ++i)
+      s << ", \"pooled " << r.pool_sizes[i] << "\": " << r.pool_heldout_nll[i + 1];
+    s << "}";
   }
   s
     << ",\n  \"fit_time_s\": " << r.fit_time_s << ", \"model_bytes\": " << m.packed_bytes()
@@ -106,6 +114,7 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
   settings.alpha_degree = o.alpha_degree;
   if (o.max_blend < 0 || o.max_blend > StfModel::kMaxBlend) fail("--max-blend must be in 0..3");
   settings.max_blend = o.max_blend;
+  settings.pool_neighbours = !o.no_pooling;
 
   // Every output is checked (and claimed) before any work.
   std::vector<NamedFile> files{{o.table, "the table"}, {o.heldout, "--heldout"}};
@@ -182,6 +191,8 @@ void add_fit_command(CLI::App& app) {
   cmd->add_option("--max-blend", o->max_blend,
                   "auto sizes: widest alpha blend to try, 0-3 (a pdf sums up to 2 K + 1 bins' densities)")
       ->capture_default_str();
+  cmd->add_flag("--no-pooling", o->no_pooling,
+                "vmf and hvmf auto sizes: fit every alpha bin alone, never with its neighbours' escapes");
   cmd->add_option("--tolerance", o->tolerance,
                   "Target TV distance: fewest alpha bins, coarsest grid and smallest size that are certified within it");
   cmd->add_option("--heldout", o->heldout, "With --tolerance: an independent table (other seed) that certifies the fit")

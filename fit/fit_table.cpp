@@ -12,6 +12,7 @@
 #include "alpha_tilt.h"
 #include "cell_probability.h"
 #include "grid.h"
+#include "mirror.h"
 #include "parallel.h"
 #include "sh_fit.h"
 #include "stf/once_scattered.h"
@@ -127,23 +128,51 @@ struct BinFits {
   std::vector<std::vector<double>> sh;      // sh: raw projections, not yet smoothed
 };
 
+// The angle about y from the exit point's z axis to where escapes with these cell counts head
+// on average (their mean direction's azimuth in the x-z plane of the exit point's frame).
+double heading(const Table& t, const std::vector<double>& counts) {
+  double x = 0, z = 0;
+  for (std::int64_t c = 0; c < t.cells; ++c) x += counts[c] * t.direction[c][0], z += counts[c] * t.direction[c][2];
+  return std::atan2(x, z);
+}
+
+// Whether bin b is sparse enough for its neighbours' escapes to pay (FitSettings::
+// pool_neighbours): pooling trades noise for bias, and measured on 1e7-path tables it moved no
+// model while its fits took four times as long.
+bool worth_pooling(const Table& t, int b) { return sum(bin_counts(t, -1, b)) < kPoolBelowEscapes; }
+
 // `start`: fits (on a half-table, of this size or smaller) to start the lobes from, or null;
-// missing lobes come from splitting the heaviest ones (grow_lobes).
+// missing lobes come from splitting the heaviest ones (grow_lobes). `neighbours` > 0 (vmf): each
+// bin worth pooling has its lobes fitted to its own escapes and, with that weight, to those of
+// the bins on either side, expected where the bin's go turned about y by the difference of
+// their headings (the forward peak turns with the exit point: docs/fit.md, "Neighbour
+// pooling"); the other bins copy `alone` (the same size fitted unpooled on the same half) when
+// given.
 BinFits fit_bins(const Table& t, int half, ModelKind kind, int size, const QuadratureLevels& levels,
-                 const ShProjector* projector, const FitSettings& s, const BinFits* start = nullptr) {
+                 const ShProjector* projector, const FitSettings& s, const BinFits* start = nullptr,
+                 double neighbours = 0, const BinFits* alone = nullptr) {
   BinFits fits;
   fits.table = &t;
   fits.hemispherical = kind == ModelKind::kVmf && s.hemispherical;
   fits.status.assign(t.alpha_bins, BinStatus::kBorrowed);
   fits.lobes.resize(t.alpha_bins);
   fits.sh.resize(t.alpha_bins);
+  std::vector<std::vector<double>> counts(t.alpha_bins);
+  std::vector<double> headings(t.alpha_bins, 0);
+  for (int b = 0; b < t.alpha_bins; ++b) {
+    counts[b] = bin_counts(t, half, b);
+    if (neighbours > 0) headings[b] = heading(t, counts[b]);
+  }
+  const std::vector<double>& edges = t.alpha_edges;
+  auto outward_of = [&](int b) {
+    return s.hemispherical ? outward_factors(levels, edges[std::size_t(b)], edges[std::size_t(b) + 1]) : OutwardFactors{};
+  };
   for_each_bin(t.alpha_bins, s, [&](int b) {
-    std::vector<double> counts = bin_counts(t, half, b);
-    double n = sum(counts);
+    double n = sum(counts[b]);
     if (n < s.min_escapes) return;
     fits.status[b] = BinStatus::kFitted;
     if (kind == ModelKind::kSh) {
-      fits.sh[b] = projector->project(counts);
+      fits.sh[b] = projector->project(counts[b]);
       return;
     }
     // No more lobes than the bin's escapes can support (about 50 per lobe).
@@ -151,12 +180,30 @@ BinFits fit_bins(const Table& t, int half, ModelKind kind, int size, const Quadr
     const bool warm = start && start->status[b] == BinStatus::kFitted;
     VmfFitOptions options;
     if (half >= 0) options.function_tolerance = 1e-4;  // for held-out scoring
-    const OutwardFactors outward =
-        s.hemispherical ? outward_factors(levels, t.alpha_edges[std::size_t(b)], t.alpha_edges[std::size_t(b) + 1])
-                        : OutwardFactors{};
+    const OutwardFactors outward = outward_of(b);
     if (s.hemispherical) options.outward = &outward;
-    fits.lobes[b] = warm ? fit_vmf_from(counts, levels, grow_lobes(start->lobes[b], lobes), options).lobes
-                         : fit_vmf(counts, levels, lobes, options).lobes;
+    OutwardFactors near[2];
+    const bool pooled = neighbours > 0 && worth_pooling(t, b);
+    if (neighbours > 0 && !pooled && alone && alone->status[b] == BinStatus::kFitted) {
+      fits.lobes[b] = alone->lobes[b];  // as fitted alone, at this size, on this half
+      return;
+    }
+    for (int side = 0; side < 2 && pooled; ++side) {
+      const int j = side == 0 ? b - 1 : b + 1;
+      if (j < 0 || j >= t.alpha_bins || sum(counts[j]) < s.min_escapes) continue;
+      near[side] = outward_of(j);
+      options.pooled.push_back({&counts[j], s.hemispherical ? &near[side] : nullptr, headings[j] - headings[b], neighbours});
+    }
+    VmfFitResult fit = warm ? fit_vmf_from(counts[b], levels, grow_lobes(start->lobes[b], lobes), options)
+                            : fit_vmf(counts[b], levels, lobes, options);
+    // A pooled fit of the full table also starts afresh and keeps the better optimum: from a
+    // pooled half-table fit it often stays in that half's local optimum (pooling is chosen
+    // where the tables are small and noisy, so the second fit is cheap).
+    if (warm && half < 0 && pooled) {
+      VmfFitResult fresh = fit_vmf(counts[b], levels, lobes, options);
+      if (fresh.deviance < fit.deviance) fit = std::move(fresh);
+    }
+    fits.lobes[b] = std::move(fit.lobes);
     fits.lobes[b].resize(size, VmfLobe{0, 0, {0, 0, 1}});
   });
   std::vector<VmfLobe> uniform(size, VmfLobe{0, 0, {0, 0, 1}});
@@ -238,17 +285,17 @@ std::vector<ShSmoothing> sh_smoothings() {
 
 // Fits on half 0, scores on half 1. For SH, also picks the smoothing with the lowest held-out
 // NLL; returns it in `best_t`, and the fits in `fitted`. vMF lobes start from the fits of the
-// next smaller candidate when there are any.
+// next smaller candidate when there are any; `neighbours` as fit_bins.
 HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const DirectionGrid& grid,
                          const QuadratureLevels& levels, ShSmoothing& best_t, BinFits& fitted,
-                         const BinFits* smaller) {
+                         const BinFits* smaller, double neighbours = 0, const BinFits* alone = nullptr) {
   std::unique_ptr<ShProjector> projector;
   std::vector<double> basis;
   if (s.kind == ModelKind::kSh) {
     projector = std::make_unique<ShProjector>(grid, size);
     basis = sh_basis_at(levels.at(1), size);
   }
-  BinFits& fits = fitted = fit_bins(t, 0, s.kind, size, levels, projector.get(), s, smaller);
+  BinFits& fits = fitted = fit_bins(t, 0, s.kind, size, levels, projector.get(), s, smaller, neighbours, alone);
   HeldOut best;
   best_t = {};
   if (cancelled(s)) return best;  // bins were skipped: nothing to score
@@ -261,6 +308,41 @@ HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const D
     if (best.log_p.empty() || h.nll < best.nll) best = std::move(h), best_t = smoothing;
   }
   return best;
+}
+
+// Neighbour pooling adds no parameter but a bias (the neighbours' escapes are not quite the
+// bin's turned), so it can only pay where noise, not the family, limits the model: where the
+// held-out NLL stopped falling before the largest size (`best`, an index into the `sizes`
+// tried), and in bins with few escapes (worth_pooling). Then the chosen size and the next are
+// fitted pooled on half 0 (the other bins as fitted alone); a pooled fit replaces the choice
+// (`size`, its half-0 `fits` and `score`) when its held-out NLL is lower, by two standard
+// errors when it has more lobes (the rule of the sizes). Returns the neighbours' weight.
+double choose_pooling(const Table& t, const FitSettings& s, const DirectionGrid& grid, const QuadratureLevels& levels,
+                      const std::vector<int>& sizes, const std::vector<BinFits>& half_fits, std::size_t best,
+                      int& size, BinFits& fits, HeldOut& score, FitReport& r) {
+  const std::vector<int> all = auto_candidates(s.kind);
+  bool sparse = false;
+  for (int b = 0; b < t.alpha_bins; ++b) sparse = sparse || worth_pooling(t, b);
+  if (!sparse || best + 1 >= all.size()) return 0;
+  const auto next = std::upper_bound(all.begin(), all.end(), size);
+  double weight = 0;
+  r.pool_heldout_nll.push_back(score.nll);
+  for (int candidate : next == all.end() ? std::vector<int>{size} : std::vector<int>{size, *next}) {
+    const auto tried = std::find(sizes.begin(), sizes.end(), candidate);
+    const BinFits* alone = tried == sizes.end() ? nullptr : &half_fits[std::size_t(tried - sizes.begin())];
+    ShSmoothing unused;
+    BinFits pooled;
+    HeldOut h = heldout_for_size(t, s, candidate, grid, levels, unused, pooled, &fits, kNeighbourWeight, alone);
+    if (cancelled(s)) return 0;
+    r.pool_sizes.push_back(candidate);
+    r.pool_heldout_nll.push_back(h.nll);
+    const double margin = candidate > size ? 2 * difference_error(t, 1, h, score) : 0.0;
+    if (h.nll < score.nll - margin) {
+      size = candidate, weight = kNeighbourWeight;
+      fits = std::move(pooled), score = std::move(h);
+    }
+  }
+  return weight;
 }
 
 // Held-out NLL of the half-0 fits behind `flat` (its per-bin cell log-probabilities) with each
@@ -342,12 +424,14 @@ StfModel fit_any_family(const Table& t, const FitSettings& s, FitReport& r) {
 
 }  // namespace
 
-StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
+StfModel fit_table(const Table& raw, const FitSettings& s, FitReport* report) {
   if (s.any_family) {
     FitReport local;
-    return fit_any_family(t, s, report ? *report : local);
+    return fit_any_family(raw, s, report ? *report : local);
   }
   auto start = std::chrono::steady_clock::now();
+  // Everything is fitted and chosen on the folded table; the diagnostics are against the raw one.
+  const Table t = s.fold_mirror ? mirror_folded(raw) : raw;
   FitReport local;
   FitReport& r = report ? *report : local;
   r = FitReport{};
@@ -361,6 +445,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   ShSmoothing smoothing;
   BinFits chosen_fits;  // on half 0: where the final fit's lobes start
   int blend = 0;
+  double neighbours = 0;  // the neighbours' weight in each bin's fit (fit_bins)
   if (s.automatic || s.kind == ModelKind::kSh) {
     std::vector<int> sizes = s.automatic ? auto_candidates(s.kind) : std::vector<int>{s.size};
     std::vector<HeldOut> scores;
@@ -391,10 +476,15 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
     }
     size = sizes[chosen];
     smoothing = ts[chosen];
-    chosen_fits = std::move(half_fits[chosen]);
+    chosen_fits = half_fits[chosen];
+    HeldOut chosen_score = std::move(scores[chosen]);
+    if (s.automatic && s.kind == ModelKind::kVmf && s.pool_neighbours && t.alpha_bins > 1) {
+      neighbours = choose_pooling(t, s, *grid, levels, sizes, half_fits, best, size, chosen_fits, chosen_score, r);
+      if (cancelled(s)) return {};
+    }
     // Blending adds no parameter: the width with the lowest held-out NLL is kept (0: none).
     if (s.automatic && t.alpha_bins > 1) {
-      r.blend_heldout_nll = blended_nll(t, scores[chosen], s.max_blend);
+      r.blend_heldout_nll = blended_nll(t, chosen_score, s.max_blend);
       blend = int(std::min_element(r.blend_heldout_nll.begin(), r.blend_heldout_nll.end()) - r.blend_heldout_nll.begin());
     }
   }
@@ -402,7 +492,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   std::unique_ptr<ShProjector> projector;
   if (s.kind == ModelKind::kSh) projector = std::make_unique<ShProjector>(*grid, size);
   BinFits fits = fit_bins(t, -1, s.kind, size, levels, projector.get(), s,
-                          chosen_fits.status.empty() ? nullptr : &chosen_fits);
+                          chosen_fits.status.empty() ? nullptr : &chosen_fits, neighbours);
   if (cancelled(s)) return {};
 
   StfModel m;
@@ -452,7 +542,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   r.bins.resize(t.alpha_bins);
   const int params_per_bin = s.kind == ModelKind::kVmf ? 5 * size - 1 : sh_count(size) - 1;
   for_each_bin(t.alpha_bins, s, [&](int b) {
-    std::vector<double> counts = bin_counts(t, -1, b);
+    std::vector<double> counts = bin_counts(raw, -1, b);
     BinDiagnostics& d = r.bins[b];
     d.escapes = sum(counts);
     d.components = size;
@@ -477,6 +567,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
     d.chi2_dof = chi2 / std::max(1, used - params_per_bin);
   });
   r.chosen_size = size;
+  r.neighbour_weight = neighbours;
   r.smoothing = smoothing.t;
   r.lanczos_window = smoothing.lanczos;
   r.fit_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

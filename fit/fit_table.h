@@ -21,6 +21,11 @@ struct FitSettings {
   int min_escapes = 10;    // bins with fewer escapes borrow their neighbour's model
   int alpha_degree = -1;   // sh: >= 0 replaces the bins' coefficients by a Chebyshev series in cos(alpha)
   int max_blend = StfModel::kMaxBlend;  // auto: the widest alpha blend tried (StfModel::alpha_blend)
+  // vmf/hvmf auto: whether fitting each bin together with its neighbours' escapes, turned to
+  // its heading (kNeighbourWeight), is tried on held-out data.
+  bool pool_neighbours = true;
+  // Whether the table is folded over its mirror symmetry first (mirror_folded).
+  bool fold_mirror = true;
   // When set (e.g. by Ctrl-C), no further bin is started and fit_table returns early with a
   // model that must be thrown away.
   const std::atomic<bool>* cancel = nullptr;
@@ -30,6 +35,11 @@ struct FitSettings {
 // 0 <= L <= 32). Throws
 // std::invalid_argument naming --model and what is allowed.
 FitSettings parse_model_spec(const std::string& spec);
+
+// The weight of each of a bin's two neighbours in a pooled fit (FitSettings::pool_neighbours),
+// and the escapes (after two or more collisions, both halves) below which a bin is pooled.
+inline constexpr double kNeighbourWeight = 0.5;
+inline constexpr double kPoolBelowEscapes = 4e4;
 
 // Candidate sizes tried by vmf:auto and sh:auto.
 std::vector<int> auto_candidates(ModelKind kind);
@@ -52,6 +62,12 @@ struct FitReport {
   std::vector<double> family_heldout_nll;  // auto: held-out NLL of the vmf and the sh model
   // auto: held-out NLL of the chosen size per blend width 0 .. kMaxBlend (StfModel::alpha_blend)
   std::vector<double> blend_heldout_nll;
+  // vmf/hvmf auto, when neighbour pooling was tried: the sizes and their held-out NLL fitted
+  // with the neighbours' escapes (pool_sizes), against the chosen unpooled size's; and the
+  // neighbours' weight the final fit used (0: each bin alone).
+  std::vector<int> pool_sizes;
+  std::vector<double> pool_heldout_nll;
+  double neighbour_weight = 0;
   double smoothing = 0;         // sh: heat-kernel t chosen on the held-out half
   bool lanczos_window = false;  // sh: whether the Lanczos window was chosen there too
   double fit_time_s = 0;

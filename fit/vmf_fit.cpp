@@ -124,8 +124,15 @@ class PoissonDeviance final : public ceres::CostFunction {
       // The widened lobe depends on the sub-cell's solid angle alone: on an equal-area grid
       // (HEALPix) it is computed once per lobe, not once per point.
       double widened_for = -1, stretch = 1, ke = kappa, norm = norm0, dlog = 0;
+      // Points beyond 40 e-folds are skipped below; a cell whose every point must be (its centre
+      // farther from the mean than that angle plus the cell's spread) is skipped whole.
+      const double far = 1 - 40 * (1 + kappa * max_sub_cell / 12) / kappa;
+      const double reach = far > -1 ? std::acos(far) + levels_.spread(level) : kPi;
+      const double cos_reach = reach < kPi ? std::cos(reach) : -2.0;
+      const std::vector<Vec3>& centre = levels_.centres();
       for (std::size_t c = 0; c < row_of_cell_.size(); ++c) {
         const int row = row_of_cell_[c];
+        if (dot(mean, centre[c]) < cos_reach) continue;
         for (int j = 0; j < q.per_cell; ++j) {
           const std::size_t i = c * q.per_cell + j;
           const Vec3& x = q.point[i];
@@ -217,6 +224,51 @@ class PoissonDeviance final : public ceres::CostFunction {
   double total_ = 0;
   double max_sub_cell_[QuadratureLevels::kMaxLevel + 1] = {};  // the largest sub-cell solid angle per level
   double widen_above_ = 0;   // kappa a / 12 beyond which lobes are widened
+};
+
+// A pooled neighbour's deviance (PooledBin): PoissonDeviance of its counts with every lobe's
+// mean turned by R = R_y(angle), residuals scaled by sqrt(weight) so that its deviance counts
+// weight times. R is orthogonal, so d r / d mean = (d r / d (R mean)) R.
+class TurnedDeviance final : public ceres::CostFunction {
+ public:
+  TurnedDeviance(std::unique_ptr<PoissonDeviance> inner, int lobes, double angle, double weight)
+      : inner_(std::move(inner)), lobes_(lobes), c_(std::cos(angle)), s_(std::sin(angle)), scale_(std::sqrt(weight)) {
+    set_num_residuals(inner_->num_residuals());
+    *mutable_parameter_block_sizes() = inner_->parameter_block_sizes();
+  }
+
+  bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
+    std::vector<double> turned(3 * std::size_t(lobes_));
+    std::vector<const double*> p{params[0], params[1]};
+    for (int k = 0; k < lobes_; ++k) {
+      const double* m = params[2 + k];
+      double* t = &turned[3 * std::size_t(k)];
+      t[0] = c_ * m[0] + s_ * m[2], t[1] = m[1], t[2] = -s_ * m[0] + c_ * m[2];
+      p.push_back(t);
+    }
+    if (!inner_->Evaluate(p.data(), residuals, jacobians)) return false;
+    const int rows = num_residuals();
+    for (int r = 0; r < rows; ++r) residuals[r] *= scale_;
+    if (!jacobians) return true;
+    for (int block = 0; block < 2; ++block)
+      if (jacobians[block])
+        for (int i = 0; i < rows * lobes_; ++i) jacobians[block][i] *= scale_;
+    for (int k = 0; k < lobes_; ++k) {
+      double* J = jacobians[2 + k];
+      if (!J) continue;
+      for (int r = 0; r < rows; ++r) {
+        double* row = J + 3 * r;
+        const double jx = row[0], jy = row[1], jz = row[2];  // times R_y = [[c, 0, s], [0, 1, 0], [-s, 0, c]]
+        row[0] = scale_ * (jx * c_ - jz * s_), row[1] = scale_ * jy, row[2] = scale_ * (jx * s_ + jz * c_);
+      }
+    }
+    return true;
+  }
+
+ private:
+  std::unique_ptr<PoissonDeviance> inner_;
+  int lobes_;
+  double c_, s_, scale_;
 };
 
 // Banerjee et al. (2005): kappa from the mean resultant length R in 3D.
@@ -319,6 +371,14 @@ std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const Cell
 
 QuadratureLevels::QuadratureLevels(const DirectionGrid& grid) {
   for (int level = 0; level <= kMaxLevel; ++level) levels_.push_back(grid.quadrature(level));
+  for (std::size_t c = 0; c < levels_[0].point.size() / std::size_t(levels_[0].per_cell); ++c)
+    centres_.push_back(cell_centre(levels_[0], c));
+  for (const CellQuadrature& q : levels_) {
+    double widest = 1;  // the smallest cosine between a centre and a point of its cell
+    for (std::size_t i = 0; i < q.point.size(); ++i)
+      widest = std::min(widest, dot(centres_[i / std::size_t(q.per_cell)], q.point[i]));
+    spread_.push_back(std::acos(std::clamp(widest, -1.0, 1.0)) + 1e-9);
+  }
   std::vector<double> omega = grid.solid_angles();
   cell_solid_angle_ = *std::max_element(omega.begin(), omega.end());
   pole_cell_ = grid.cell({0, 0, 1});
@@ -348,6 +408,10 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
   std::vector<double*> blocks = {logits.data(), log_kappa.data()};
   for (int k = 0; k < K; ++k) blocks.push_back(&means[3 * k]);
   problem.AddResidualBlock(new PoissonDeviance(levels, counts, K, options.outward), nullptr, blocks);
+  for (const PooledBin& n : options.pooled)
+    problem.AddResidualBlock(
+        new TurnedDeviance(std::make_unique<PoissonDeviance>(levels, *n.counts, K, n.outward), K, n.angle, n.weight),
+        nullptr, blocks);
   ceres::SphereManifold<3> sphere;
   for (int k = 0; k < K; ++k) problem.SetManifold(&means[3 * k], &sphere);
   for (int k = 0; k < K; ++k) {

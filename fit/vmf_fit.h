@@ -16,8 +16,19 @@ class QuadratureLevels;
 // factor that makes vMF lobes hemispherical. Empty vectors: plain lobes.
 using OutwardFactors = std::array<std::vector<double>, 3>;
 
+// A neighbouring alpha bin's escapes fitted together with a bin's own: they are expected to
+// follow the bin's lobes turned by `angle` about y (the axis the exit point turns about as
+// alpha grows), times the neighbour's own outward factor, and their log-likelihood counts
+// `weight` times.
+struct PooledBin {
+  const std::vector<double>* counts = nullptr;
+  const OutwardFactors* outward = nullptr;  // null: plain lobes
+  double angle = 0, weight = 0;
+};
+
 struct VmfFitOptions {
   const OutwardFactors* outward = nullptr;  // hemispherical lobes of this bin, or null
+  std::vector<PooledBin> pooled;            // neighbours fitted jointly (none: the bin alone)
   int max_iterations = 100;
   // Stop once the deviance changes by less than this share of itself between iterations:
   // 1e-5 is ~0.05 at the deviances of a bin's few thousand cells, far below one unit, the
@@ -29,7 +40,7 @@ struct VmfFitOptions {
 
 struct VmfFitResult {
   std::vector<VmfLobe> lobes;  // weights sum to 1
-  double deviance = 0;         // Poisson deviance of the fit: 2 sum n log(n / mu) - (n - mu)
+  double deviance = 0;         // Poisson deviance of the fit: 2 sum n log(n / mu) - (n - mu), pooled bins weighted in
   int iterations = 0;
 };
 
@@ -47,9 +58,15 @@ class QuadratureLevels {
   int level_for_kappa(double kappa, double counts = 1e8) const;
   // The cell holding +z, where the uncollided delta lands.
   std::int64_t pole_cell() const { return pole_cell_; }
+  // Each cell's centre, and the largest angle from a cell's centre to its points at a level:
+  // a lobe can skip a whole cell when its nearest possible point is beyond its reach.
+  const std::vector<Vec3>& centres() const { return centres_; }
+  double spread(int level) const { return spread_[std::size_t(level)]; }
 
  private:
   std::vector<CellQuadrature> levels_;
+  std::vector<Vec3> centres_;
+  std::vector<double> spread_;
   double cell_solid_angle_;  // the largest cell's
   std::int64_t pole_cell_ = 0;
 };

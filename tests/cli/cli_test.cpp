@@ -150,6 +150,24 @@ TEST_F(Cli, FitAndEvalProduceModelAndJson) {
   EXPECT_EQ(stf("eval " + out("t.h5") + " --reference " + out("ref.h5") + " --json " + out("raw.json")).status, 0);
 }
 
+// A sparse forward-scattering table: hvmf:auto tries neighbour pooling and says what it chose
+// in the report; --no-pooling fits every bin alone and the report has no pooling scores.
+TEST_F(Cli, FitReportsNeighbourPoolingAndNoPoolingTurnsItOff) {
+  ASSERT_EQ(stf("precompute --sigma-s 4.275 --sigma-a 0.225 --g 0.9 --alpha-bins 18 --grid healpix:4 --quiet "
+                "--paths 20000 -o " + out("t.h5")).status, 0);
+  auto report = [&](const std::string& extra, const std::string& name) {
+    Result fit = stf("fit " + out("t.h5") + " --model hvmf:auto --quiet " + extra + " --report " + out(name) + " -o " +
+                     out(name + ".h5"));
+    EXPECT_EQ(fit.status, 0) << fit.err;
+    std::ifstream json(out(name));
+    return std::string((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+  };
+  const std::string pooled = report("", "pooled.json"), alone = report("--no-pooling", "alone.json");
+  EXPECT_NE(pooled.find("\"neighbour_weight\": 0.5"), std::string::npos) << pooled.substr(0, 600);
+  EXPECT_NE(pooled.find("\"pool_heldout_nll\""), std::string::npos);
+  EXPECT_EQ(alone.find("\"pool_heldout_nll\""), std::string::npos) << alone.substr(0, 600);
+}
+
 // --tolerance: a certified model with fewer or equal alpha bins, evaluable against the
 // reference's bins, its bound and verdict stored with it.
 TEST_F(Cli, FitToToleranceCertifiesOnTheHeldOutTable) {

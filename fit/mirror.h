@@ -1,0 +1,27 @@
+// The mirror symmetry of the exit distribution: the experiment is symmetric about the plane
+// through the sphere's axis and the exit point, so in the exit point's frame a direction and
+// its image under y -> -y are equally likely (docs/design.md). A table holds that symmetry only
+// up to its noise; folding it (each cell's counts averaged with its mirror cell's) halves the
+// noise a fit sees without changing what it estimates.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "grid.h"
+#include "table.h"
+
+namespace stf::fit {
+
+// For every cell of `grid`, the cell holding its mirror image under y -> -y; empty when the
+// grid is not mirror-symmetric (some cell's image is not, to 1e-3 of a cell, a cell of the same
+// solid angle).
+std::vector<std::int64_t> mirror_cells(const DirectionGrid& grid);
+
+// `t` with every half-table's escapes (and its once-scattered tallies) averaged over mirror
+// pairs of cells; the uncollided delta stays in the pole cell and the per-bin totals, sub-bin
+// tallies and everything else are unchanged. `t` itself when its grid is not mirror-symmetric
+// or it does not record its uncollided escapes apart (they would be spread off the pole).
+Table mirror_folded(const Table& t);
+
+}  // namespace stf::fit
