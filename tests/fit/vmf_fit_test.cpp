@@ -255,10 +255,16 @@ TEST(VmfFit, NeighboursPooledAtTheirHeadingAddTheirEscapes) {
   };
   const double n = 1e6;
   const std::vector<double> own = scaled(exact, n);
-  for (double turn : {angle, 0.8}) {  // 0.8 rad: a wrong derivative by the mean would not converge
+  for (double turn : {angle, 0.8}) {
     const std::vector<double> below = scaled(vmf_cell_probabilities(turned(truth, -turn), fine), n),
                               above = scaled(vmf_cell_probabilities(turned(truth, turn), fine), n);
     EXPECT_LT(tv(vmf_cell_probabilities(pooled_fit(own, below, above, turn), fine), exact), 2e-3) << turn;
+    // Noise-free counts: with exact derivatives Gauss-Newton converges as fast pooled as alone
+    // (a turned deviance whose derivatives by the mean were not turned back takes 13
+    // iterations at 0.8 rad against 4).
+    VmfFitOptions o;
+    o.pooled = {{&below, nullptr, -turn, 1.0}, {&above, nullptr, turn, 1.0}};
+    EXPECT_LE(fit_vmf(own, levels, 2, o).iterations, fit_vmf(own, levels, 2).iterations + 2) << turn;
   }
 
   const std::vector<double> noisy = draw_histogram(truth, *grid, 3000, 11),
