@@ -6,8 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "cell_probability.h"
 #include "alpha_tilt.h"
+#include "cell_probability.h"
 #include "grid.h"
 #include "stf/tilt.h"
 

@@ -74,6 +74,19 @@ std::vector<double> bin_counts(const Table& t, int half, int b) {
   return counts;
 }
 
+// The escapes a fit sees per alpha bin (bin_counts), folded over the mirror symmetry of the
+// exit distribution when `image` (mirror_cells) is not empty. Folding bin by bin as the counts
+// are read keeps no second copy of the table.
+struct Escapes {
+  const Table& table;
+  std::vector<std::int64_t> image;
+  std::vector<double> counts(int half, int b) const {
+    std::vector<double> c = bin_counts(table, half, b);
+    if (!image.empty()) fold_over_mirror(c, image);
+    return c;
+  }
+};
+
 double uncollided_escapes(const Table& t) {
   return t.uncollided_half[0] >= 0 ? t.uncollided_half[0] + t.uncollided_half[1] : 0.0;
 }
@@ -148,31 +161,35 @@ bool worth_pooling(const Table& t, int b) { return sum(bin_counts(t, -1, b)) < k
 // their headings (the forward peak turns with the exit point: docs/fit.md, "Neighbour
 // pooling"); the other bins copy `alone` (the same size fitted unpooled on the same half) when
 // given.
-BinFits fit_bins(const Table& t, int half, ModelKind kind, int size, const QuadratureLevels& levels,
+BinFits fit_bins(const Escapes& e, int half, ModelKind kind, int size, const QuadratureLevels& levels,
                  const ShProjector* projector, const FitSettings& s, const BinFits* start = nullptr,
                  double neighbours = 0, const BinFits* alone = nullptr) {
+  const Table& t = e.table;
   BinFits fits;
   fits.table = &t;
   fits.hemispherical = kind == ModelKind::kVmf && s.hemispherical;
   fits.status.assign(t.alpha_bins, BinStatus::kBorrowed);
   fits.lobes.resize(t.alpha_bins);
   fits.sh.resize(t.alpha_bins);
-  std::vector<std::vector<double>> counts(t.alpha_bins);
-  std::vector<double> headings(t.alpha_bins, 0);
-  for (int b = 0; b < t.alpha_bins; ++b) {
-    counts[b] = bin_counts(t, half, b);
-    if (neighbours > 0) headings[b] = heading(t, counts[b]);
+  // Pooled fits read every bin's escapes (as neighbours); the others each bin's as it is fitted.
+  std::vector<std::vector<double>> all;
+  std::vector<double> headings;
+  for (int b = 0; b < t.alpha_bins && neighbours > 0; ++b) {
+    all.push_back(e.counts(half, b));
+    headings.push_back(heading(t, all.back()));
   }
   const std::vector<double>& edges = t.alpha_edges;
   auto outward_of = [&](int b) {
     return s.hemispherical ? outward_factors(levels, edges[std::size_t(b)], edges[std::size_t(b) + 1]) : OutwardFactors{};
   };
   for_each_bin(t.alpha_bins, s, [&](int b) {
-    double n = sum(counts[b]);
+    std::vector<double> own;
+    const std::vector<double>& counts = all.empty() ? (own = e.counts(half, b)) : all[std::size_t(b)];
+    double n = sum(counts);
     if (n < s.min_escapes) return;
     fits.status[b] = BinStatus::kFitted;
     if (kind == ModelKind::kSh) {
-      fits.sh[b] = projector->project(counts[b]);
+      fits.sh[b] = projector->project(counts);
       return;
     }
     // No more lobes than the bin's escapes can support (about 50 per lobe).
@@ -190,17 +207,17 @@ BinFits fit_bins(const Table& t, int half, ModelKind kind, int size, const Quadr
     }
     for (int side = 0; side < 2 && pooled; ++side) {
       const int j = side == 0 ? b - 1 : b + 1;
-      if (j < 0 || j >= t.alpha_bins || sum(counts[j]) < s.min_escapes) continue;
+      if (j < 0 || j >= t.alpha_bins || sum(all[std::size_t(j)]) < s.min_escapes) continue;
       near[side] = outward_of(j);
-      options.pooled.push_back({&counts[j], s.hemispherical ? &near[side] : nullptr, headings[j] - headings[b], neighbours});
+      options.pooled.push_back({&all[std::size_t(j)], s.hemispherical ? &near[side] : nullptr, headings[j] - headings[b], neighbours});
     }
-    VmfFitResult fit = warm ? fit_vmf_from(counts[b], levels, grow_lobes(start->lobes[b], lobes), options)
-                            : fit_vmf(counts[b], levels, lobes, options);
+    VmfFitResult fit = warm ? fit_vmf_from(counts, levels, grow_lobes(start->lobes[b], lobes), options)
+                            : fit_vmf(counts, levels, lobes, options);
     // A pooled fit of the full table also starts afresh and keeps the better optimum: from a
     // pooled half-table fit it often stays in that half's local optimum (pooling is chosen
     // where the tables are small and noisy, so the second fit is cheap).
     if (warm && half < 0 && pooled) {
-      VmfFitResult fresh = fit_vmf(counts[b], levels, lobes, options);
+      VmfFitResult fresh = fit_vmf(counts, levels, lobes, options);
       if (fresh.deviance < fit.deviance) fit = std::move(fresh);
     }
     fits.lobes[b] = std::move(fit.lobes);
@@ -238,11 +255,12 @@ struct HeldOut {
   std::vector<std::vector<double>> log_p;  // per bin, per cell
 };
 
-HeldOut score(const Table& t, int half, const std::vector<std::vector<double>>& p) {
+HeldOut score(const Escapes& e, int half, const std::vector<std::vector<double>>& p) {
+  const Table& t = e.table;
   HeldOut h;
   h.log_p.resize(t.alpha_bins);
   for (int b = 0; b < t.alpha_bins; ++b) {
-    std::vector<double> counts = bin_counts(t, half, b);
+    std::vector<double> counts = e.counts(half, b);
     h.log_p[b].resize(t.cells);
     for (std::int64_t c = 0; c < t.cells; ++c) {
       double q = (1 - 1e-6) * p[b][c] + 1e-6 * t.solid_angle[c] / (4 * kPi);
@@ -255,10 +273,11 @@ HeldOut score(const Table& t, int half, const std::vector<std::vector<double>>& 
 
 // Standard error of the held-out NLL difference between two models: the paths are independent,
 // so its variance is the sum over bins of the multinomial variance of sum n_c d_c.
-double difference_error(const Table& t, int half, const HeldOut& a, const HeldOut& b) {
+double difference_error(const Escapes& e, int half, const HeldOut& a, const HeldOut& b) {
+  const Table& t = e.table;
   double var = 0;
   for (int bin = 0; bin < t.alpha_bins; ++bin) {
-    std::vector<double> counts = bin_counts(t, half, bin);
+    std::vector<double> counts = e.counts(half, bin);
     double n = sum(counts), s1 = 0, s2 = 0;
     for (std::int64_t c = 0; c < t.cells; ++c) {
       double d = a.log_p[bin][c] - b.log_p[bin][c];
@@ -286,7 +305,7 @@ std::vector<ShSmoothing> sh_smoothings() {
 // Fits on half 0, scores on half 1. For SH, also picks the smoothing with the lowest held-out
 // NLL; returns it in `best_t`, and the fits in `fitted`. vMF lobes start from the fits of the
 // next smaller candidate when there are any; `neighbours` as fit_bins.
-HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const DirectionGrid& grid,
+HeldOut heldout_for_size(const Escapes& e, const FitSettings& s, int size, const DirectionGrid& grid,
                          const QuadratureLevels& levels, ShSmoothing& best_t, BinFits& fitted,
                          const BinFits* smaller, double neighbours = 0, const BinFits* alone = nullptr) {
   std::unique_ptr<ShProjector> projector;
@@ -295,7 +314,8 @@ HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const D
     projector = std::make_unique<ShProjector>(grid, size);
     basis = sh_basis_at(levels.at(1), size);
   }
-  BinFits& fits = fitted = fit_bins(t, 0, s.kind, size, levels, projector.get(), s, smaller, neighbours, alone);
+  BinFits& fits = fitted = fit_bins(e, 0, s.kind, size, levels, projector.get(), s, smaller, neighbours, alone);
+  const Table& t = e.table;
   HeldOut best;
   best_t = {};
   if (cancelled(s)) return best;  // bins were skipped: nothing to score
@@ -304,7 +324,7 @@ HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const D
     for_each_bin(t.alpha_bins, s,
                  [&](int b) { p[b] = bin_probabilities(fits, b, s.kind, size, smoothing, levels, basis); });
     if (cancelled(s)) return {};  // some bins were skipped
-    HeldOut h = score(t, 1, p);
+    HeldOut h = score(e, 1, p);
     if (best.log_p.empty() || h.nll < best.nll) best = std::move(h), best_t = smoothing;
   }
   return best;
@@ -317,12 +337,12 @@ HeldOut heldout_for_size(const Table& t, const FitSettings& s, int size, const D
 // fitted pooled on half 0 (the other bins as fitted alone); a pooled fit replaces the choice
 // (`size`, its half-0 `fits` and `score`) when its held-out NLL is lower, by two standard
 // errors when it has more lobes (the rule of the sizes). Returns the neighbours' weight.
-double choose_pooling(const Table& t, const FitSettings& s, const DirectionGrid& grid, const QuadratureLevels& levels,
+double choose_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid, const QuadratureLevels& levels,
                       const std::vector<int>& sizes, const std::vector<BinFits>& half_fits, std::size_t best,
                       int& size, BinFits& fits, HeldOut& score, FitReport& r) {
   const std::vector<int> all = auto_candidates(s.kind);
   bool sparse = false;
-  for (int b = 0; b < t.alpha_bins; ++b) sparse = sparse || worth_pooling(t, b);
+  for (int b = 0; b < e.table.alpha_bins; ++b) sparse = sparse || worth_pooling(e.table, b);
   if (!sparse || best + 1 >= all.size()) return 0;
   const auto next = std::upper_bound(all.begin(), all.end(), size);
   double weight = 0;
@@ -332,11 +352,11 @@ double choose_pooling(const Table& t, const FitSettings& s, const DirectionGrid&
     const BinFits* alone = tried == sizes.end() ? nullptr : &half_fits[std::size_t(tried - sizes.begin())];
     ShSmoothing unused;
     BinFits pooled;
-    HeldOut h = heldout_for_size(t, s, candidate, grid, levels, unused, pooled, &fits, kNeighbourWeight, alone);
+    HeldOut h = heldout_for_size(e, s, candidate, grid, levels, unused, pooled, &fits, kNeighbourWeight, alone);
     if (cancelled(s)) return 0;
     r.pool_sizes.push_back(candidate);
     r.pool_heldout_nll.push_back(h.nll);
-    const double margin = candidate > size ? 2 * difference_error(t, 1, h, score) : 0.0;
+    const double margin = candidate > size ? 2 * difference_error(e, 1, h, score) : 0.0;
     if (h.nll < score.nll - margin) {
       size = candidate, weight = kNeighbourWeight;
       fits = std::move(pooled), score = std::move(h);
@@ -347,7 +367,8 @@ double choose_pooling(const Table& t, const FitSettings& s, const DirectionGrid&
 
 // Held-out NLL of the half-0 fits behind `flat` (its per-bin cell log-probabilities) with each
 // bin's density blended as a model of each width 0 .. max_width blends it (tilts from half 0).
-std::vector<double> blended_nll(const Table& t, const HeldOut& flat, int max_width) {
+std::vector<double> blended_nll(const Escapes& e, const HeldOut& flat, int max_width) {
+  const Table& t = e.table;
   StfModel shape;
   shape.alpha_probability.assign(std::size_t(t.alpha_bins), 0.0);
   shape.alpha_tilt = fit_alpha_tilts(t, 0);
@@ -357,7 +378,7 @@ std::vector<double> blended_nll(const Table& t, const HeldOut& flat, int max_wid
   std::vector<double> nll{flat.nll};
   for (shape.alpha_blend = 1; shape.alpha_blend <= max_width; ++shape.alpha_blend) {
     for (int b = 0; b < t.alpha_bins; ++b) q[b] = blended_cells(shape, b, p);
-    nll.push_back(score(t, 1, q).nll);
+    nll.push_back(score(e, 1, q).nll);
   }
   return nll;
 }
@@ -430,12 +451,15 @@ StfModel fit_table(const Table& raw, const FitSettings& s, FitReport* report) {
     return fit_any_family(raw, s, report ? *report : local);
   }
   auto start = std::chrono::steady_clock::now();
-  // Everything is fitted and chosen on the folded table; the diagnostics are against the raw one.
-  const Table t = s.fold_mirror ? mirror_folded(raw) : raw;
+  const Table& t = raw;
+  std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
+  // Everything is fitted and chosen on the escapes folded over the mirror symmetry (not where
+  // the uncollided escapes are unknown: they would be folded off the pole); the diagnostics
+  // are against the table as it is.
+  const Escapes seen{t, s.fold_mirror && t.uncollided_half[0] >= 0 ? mirror_cells(*grid) : std::vector<std::int64_t>{}};
   FitReport local;
   FitReport& r = report ? *report : local;
   r = FitReport{};
-  std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
   QuadratureLevels levels(*grid);
 
   // Model size: given, or the smallest candidate whose held-out NLL is within two standard
@@ -454,7 +478,7 @@ StfModel fit_table(const Table& raw, const FitSettings& s, FitReport* report) {
     for (int candidate : sizes) {
       ShSmoothing best_t;
       BinFits fitted;
-      scores.push_back(heldout_for_size(t, s, candidate, *grid, levels, best_t, fitted,
+      scores.push_back(heldout_for_size(seen, s, candidate, *grid, levels, best_t, fitted,
                                         half_fits.empty() ? nullptr : &half_fits.back()));
       half_fits.push_back(std::move(fitted));
       ts.push_back(best_t);
@@ -468,7 +492,7 @@ StfModel fit_table(const Table& raw, const FitSettings& s, FitReport* report) {
       if (scores[i].nll < scores[best].nll) best = i;
     std::size_t chosen = best;
     for (std::size_t i = 0; i < scores.size(); ++i) {
-      double error = difference_error(t, 1, scores[i], scores[best]);
+      double error = difference_error(seen, 1, scores[i], scores[best]);
       r.candidates.push_back(sizes[i]);
       r.heldout_nll.push_back(scores[i].nll);
       r.heldout_nll_error.push_back(error);
@@ -479,19 +503,19 @@ StfModel fit_table(const Table& raw, const FitSettings& s, FitReport* report) {
     chosen_fits = half_fits[chosen];
     HeldOut chosen_score = std::move(scores[chosen]);
     if (s.automatic && s.kind == ModelKind::kVmf && s.pool_neighbours && t.alpha_bins > 1) {
-      neighbours = choose_pooling(t, s, *grid, levels, sizes, half_fits, best, size, chosen_fits, chosen_score, r);
+      neighbours = choose_pooling(seen, s, *grid, levels, sizes, half_fits, best, size, chosen_fits, chosen_score, r);
       if (cancelled(s)) return {};
     }
     // Blending adds no parameter: the width with the lowest held-out NLL is kept (0: none).
     if (s.automatic && t.alpha_bins > 1) {
-      r.blend_heldout_nll = blended_nll(t, chosen_score, s.max_blend);
+      r.blend_heldout_nll = blended_nll(seen, chosen_score, s.max_blend);
       blend = int(std::min_element(r.blend_heldout_nll.begin(), r.blend_heldout_nll.end()) - r.blend_heldout_nll.begin());
     }
   }
 
   std::unique_ptr<ShProjector> projector;
   if (s.kind == ModelKind::kSh) projector = std::make_unique<ShProjector>(*grid, size);
-  BinFits fits = fit_bins(t, -1, s.kind, size, levels, projector.get(), s,
+  BinFits fits = fit_bins(seen, -1, s.kind, size, levels, projector.get(), s,
                           chosen_fits.status.empty() ? nullptr : &chosen_fits, neighbours);
   if (cancelled(s)) return {};
 
@@ -542,7 +566,7 @@ StfModel fit_table(const Table& raw, const FitSettings& s, FitReport* report) {
   r.bins.resize(t.alpha_bins);
   const int params_per_bin = s.kind == ModelKind::kVmf ? 5 * size - 1 : sh_count(size) - 1;
   for_each_bin(t.alpha_bins, s, [&](int b) {
-    std::vector<double> counts = bin_counts(raw, -1, b);
+    std::vector<double> counts = bin_counts(t, -1, b);
     BinDiagnostics& d = r.bins[b];
     d.escapes = sum(counts);
     d.components = size;

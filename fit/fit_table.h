@@ -24,7 +24,8 @@ struct FitSettings {
   // vmf/hvmf auto: whether fitting each bin together with its neighbours' escapes, turned to
   // its heading (kNeighbourWeight), is tried on held-out data.
   bool pool_neighbours = true;
-  // Whether the table is folded over its mirror symmetry first (mirror_folded).
+  // Whether the escapes are folded over their mirror symmetry as they are fitted
+  // (fold_over_mirror).
   bool fold_mirror = true;
   // When set (e.g. by Ctrl-C), no further bin is started and fit_table returns early with a
   // model that must be thrown away.

@@ -27,30 +27,11 @@ std::vector<std::int64_t> mirror_cells(const DirectionGrid& grid) {
   return image;
 }
 
-Table mirror_folded(const Table& t) {
-  if (t.uncollided_half[0] < 0) return t;
-  const std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
-  const std::vector<std::int64_t> image = mirror_cells(*grid);
-  if (image.empty()) return t;
-  Table f = t;
-  const std::size_t pole = std::size_t(grid->cell({0, 0, 1})), cells = std::size_t(t.cells);
-  for (int h = 0; h < 2; ++h) {
-    std::vector<double> w = t.weight_half[h];
-    w[pole] -= t.uncollided_half[h];  // bin 0's delta: it stays where it is
-    for (std::size_t b = 0; b < std::size_t(t.alpha_bins); ++b)
-      for (std::size_t c = 0; c < cells; ++c)
-        f.weight_half[h][b * cells + c] = 0.5 * (w[b * cells + c] + w[b * cells + std::size_t(image[c])]);
-    f.weight_half[h][pole] += t.uncollided_half[h];
+void fold_over_mirror(std::vector<double>& counts, const std::vector<std::int64_t>& image) {
+  for (std::size_t c = 0; c < counts.size(); ++c) {
+    const std::size_t m = std::size_t(image[c]);
+    if (m > c) counts[c] = counts[m] = 0.5 * (counts[c] + counts[m]);
   }
-  // Keys are 2 (bin cells + cell) + half.
-  f.once.clear();
-  for (const auto& [key, count] : t.once) {
-    const std::uint64_t i = key >> 1, cell = i % cells;
-    const std::uint64_t mirrored = 2 * (i - cell + std::uint64_t(image[cell])) + (key & 1);
-    f.once[key] += 0.5 * count;
-    f.once[mirrored] += 0.5 * count;
-  }
-  return f;
 }
 
 }  // namespace stf::fit

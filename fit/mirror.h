@@ -9,7 +9,6 @@
 #include <vector>
 
 #include "grid.h"
-#include "table.h"
 
 namespace stf::fit {
 
@@ -18,10 +17,8 @@ namespace stf::fit {
 // solid angle).
 std::vector<std::int64_t> mirror_cells(const DirectionGrid& grid);
 
-// `t` with every half-table's escapes (and its once-scattered tallies) averaged over mirror
-// pairs of cells; the uncollided delta stays in the pole cell and the per-bin totals, sub-bin
-// tallies and everything else are unchanged. `t` itself when its grid is not mirror-symmetric
-// or it does not record its uncollided escapes apart (they would be spread off the pole).
-Table mirror_folded(const Table& t);
+// Each cell's count and its mirror cell's both replaced by their mean: the counts of one alpha
+// bin, without the uncollided delta (a point at the pole, not a density), as a fit reads them.
+void fold_over_mirror(std::vector<double>& counts, const std::vector<std::int64_t>& image);
 
 }  // namespace stf::fit
