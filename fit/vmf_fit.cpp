@@ -17,6 +17,7 @@ namespace {
 // them further, up to VmfFitOptions::max_kappa (1e8). A lobe already inside one cell barely
 // changes the binned likelihood as it narrows, so near-delta lobes tend to end near 1e7.
 constexpr double kMaxStartKappa = 1e7;
+constexpr double kMaxLogit = 40;  // lobe weights below e^-40 of the heaviest are zero to a double
 
 Vec3 cell_centre(const CellQuadrature& q, std::size_t c) {
   Vec3 s{0, 0, 0};
@@ -77,8 +78,9 @@ void deviance_residual(double n, double mu, double& r, double& dr) {
 class PoissonDeviance final : public ceres::CostFunction {
  public:
   PoissonDeviance(const QuadratureLevels& levels, const std::vector<double>& counts, int lobes,
-                  const OutwardFactors* outward)
-      : levels_(levels), outward_(outward), lobes_(lobes), row_of_cell_(counts.size(), -1) {
+                  const OutwardFactors* outward, double min_kappa, double max_kappa)
+      : levels_(levels), outward_(outward), lobes_(lobes), row_of_cell_(counts.size(), -1),
+        min_log_kappa_(std::log(min_kappa)), max_log_kappa_(std::log(max_kappa)) {
     for (int level = 0; level <= QuadratureLevels::kMaxLevel; ++level)
       for (double a : levels.at(level).weight) max_sub_cell_[level] = std::max(max_sub_cell_[level], a);
     for (double n : counts) widen_above_ += n;
@@ -98,17 +100,29 @@ class PoissonDeviance final : public ceres::CostFunction {
 
   bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
     const int K = lobes_, rows = int(count_.size());
-    std::vector<double> w(K);
-    double max_logit = *std::max_element(params[0], params[0] + K), sum = 0;
-    for (int k = 0; k < K; ++k) sum += (w[k] = std::exp(params[0][k] - max_logit));
+    // Log kappa and the logits are used clamped to their bounds, with no derivative beyond
+    // them: a parameter that runs past a bound stays there without holding the others back.
+    // (Bounds declared to Ceres would add a projected line search, with two or three more
+    // Jacobians, to every iteration.)
+    std::vector<double> logit(K), log_kappa(K), w(K);
+    std::vector<char> free_logit(K), free_kappa(K);
+    for (int k = 0; k < K; ++k) {
+      logit[k] = std::clamp(params[0][k], -kMaxLogit, kMaxLogit), free_logit[k] = logit[k] == params[0][k];
+      log_kappa[k] = std::clamp(params[1][k], min_log_kappa_, max_log_kappa_), free_kappa[k] = log_kappa[k] == params[1][k];
+    }
+    double max_logit = *std::max_element(logit.begin(), logit.end()), sum = 0;
+    for (int k = 0; k < K; ++k) sum += (w[k] = std::exp(logit[k] - max_logit));
     for (double& v : w) v /= sum;
 
     // Per lobe: cell masses on the rows and totals over the sphere, with derivatives by
-    // log kappa and by the mean.
-    std::vector<double> mass(std::size_t(K) * rows, 0), d_theta(mass.size(), 0), d_mean(3 * mass.size(), 0);
+    // log kappa and by the mean. Levenberg-Marquardt asks for the residuals alone at every trial
+    // step (about half the calls): the derivatives are then not accumulated.
+    const bool derivatives = jacobians != nullptr;
+    std::vector<double> mass(std::size_t(K) * rows, 0), d_theta(derivatives ? mass.size() : 0, 0),
+        d_mean(derivatives ? 3 * mass.size() : 0, 0);
     std::vector<double> total(K, 0), total_theta(K, 0), total_mean(3 * K, 0);
     for (int k = 0; k < K; ++k) {
-      const double kappa = std::exp(params[1][k]);
+      const double kappa = std::exp(log_kappa[k]);
       const Vec3 mean = normalize({params[2 + k][0], params[2 + k][1], params[2 + k][2]});
       const int level = levels_.level_for_kappa(kappa, total_);
       const CellQuadrature& q = levels_.at(level);
@@ -123,7 +137,8 @@ class PoissonDeviance final : public ceres::CostFunction {
       const double norm0 = vmf_pdf(kappa, 1.0), dlog0 = dlog_norm(kappa) * kappa;
       // The widened lobe depends on the sub-cell's solid angle alone: on an equal-area grid
       // (HEALPix) it is computed once per lobe, not once per point.
-      double widened_for = -1, stretch = 1, ke = kappa, norm = norm0, dlog = 0;
+      double widened_for = -1, ke = kappa, norm = norm0, dlog = 0, d_ke = 1;
+      double cut_for = -1, min_cosine = -2;  // the 40 e-fold cut below, for the solid angle cut_for
       // Points beyond 40 e-folds are skipped below; a cell whose every point must be (its centre
       // farther from the mean than that angle plus the cell's spread) is skipped whole.
       const double far = 1 - 40 * (1 + kappa * max_sub_cell / 12) / kappa;
@@ -140,29 +155,33 @@ class PoissonDeviance final : public ceres::CostFunction {
           if (f <= 0) continue;  // below the tangent plane of every exit point of the bin
           // Beyond 40 e-folds below the peak a point adds nothing a double can hold relative
           // to the lobe's mass (and exp would take its slow underflow path).
-          if (kappa * (1 - cosine) > 40 * (1 + kappa * a / 12)) continue;
+          if (a != cut_for) cut_for = a, min_cosine = 1 - 40 * (1 + kappa * a / 12) / kappa;
+          if (cosine < min_cosine) continue;
           double v, vt, vm;
           if (widen) {
             if (a != widened_for) {
-              widened_for = a, stretch = 1 + kappa * a / 12, ke = kappa / stretch;
+              const double stretch = 1 + kappa * a / 12;
+              widened_for = a, ke = kappa / stretch, d_ke = kappa / (stretch * stretch);
               widened_norm(ke, norm, dlog);
             }
             v = a * norm * std::exp(ke * (cosine - 1));
             // d v / d log kappa = v (dlog_norm(ke) + cos - 1) (d ke / d kappa) kappa.
-            vt = v * (dlog + cosine - 1) * kappa / (stretch * stretch);
+            vt = v * (dlog + cosine - 1) * d_ke;
             vm = v * ke;  // d v / d mean = vm * x
           } else {
             v = a * norm0 * std::exp(kappa * (cosine - 1));
             vt = v * (dlog0 + kappa * (cosine - 1));
             vm = v * kappa;
           }
-          v *= f, vt *= f, vm *= f;  // the outward factor of hemispherical lobes
+          v *= f;  // the outward factor of hemispherical lobes
           total[k] += v;
+          const std::size_t r = std::size_t(k) * rows + row;
+          if (row >= 0) mass[r] += v;
+          if (!derivatives) continue;
+          vt *= f, vm *= f;
           total_theta[k] += vt;
           total_mean[3 * k] += vm * x.x, total_mean[3 * k + 1] += vm * x.y, total_mean[3 * k + 2] += vm * x.z;
           if (row < 0) continue;
-          const std::size_t r = std::size_t(k) * rows + row;
-          mass[r] += v;
           d_theta[r] += vt;
           d_mean[3 * r] += vm * x.x, d_mean[3 * r + 1] += vm * x.y, d_mean[3 * r + 2] += vm * x.z;
         }
@@ -175,11 +194,14 @@ class PoissonDeviance final : public ceres::CostFunction {
     for (double& t : total)
       if (!(t > 1e-150)) t = 1;
 
+    std::vector<double> share(K);  // p_row = sum_k share_k mass_k,row
+    for (int k = 0; k < K; ++k) share[k] = w[k] / total[k];
+
     // Probabilities, residuals, d residual / d mu.
     std::vector<double> p(rows, 0), dr(rows + 1);
     double p_rest = 1;
     for (int row = 0; row < rows; ++row) {
-      for (int k = 0; k < K; ++k) p[row] += w[k] * mass[std::size_t(k) * rows + row] / total[k];
+      for (int k = 0; k < K; ++k) p[row] += share[k] * mass[std::size_t(k) * rows + row];
       p_rest -= p[row];
       deviance_residual(count_[row], total_ * p[row], residuals[row], dr[row]);
     }
@@ -201,15 +223,24 @@ class PoissonDeviance final : public ceres::CostFunction {
       }
       for (int col = 0; col < width; ++col) J[rows * width + col] = p_rest > 0 ? dr[rows] * total_ * rest[col] : 0;
     };
-    fill(0, K, [&](int row, int j) { return w[j] * (mass[std::size_t(j) * rows + row] / total[j] - p[row]); });
+    // Per lobe, p_row = w_k mass_row / total: its derivatives are (w_k / total) d mass_row -
+    // (w_k d total / total^2) mass_row, with the quotients taken once per lobe.
+    std::vector<double> theta_pull(K), mean_pull(3 * std::size_t(K));
+    for (int k = 0; k < K; ++k) {
+      theta_pull[k] = share[k] * total_theta[k] / total[k];
+      for (int axis = 0; axis < 3; ++axis) mean_pull[3 * k + axis] = share[k] * total_mean[3 * k + axis] / total[k];
+    }
+    fill(0, K, [&](int row, int j) {
+      return free_logit[j] ? share[j] * mass[std::size_t(j) * rows + row] - w[j] * p[row] : 0.0;
+    });
     fill(1, K, [&](int row, int k) {
       std::size_t r = std::size_t(k) * rows + row;
-      return w[k] * (d_theta[r] * total[k] - mass[r] * total_theta[k]) / (total[k] * total[k]);
+      return free_kappa[k] ? share[k] * d_theta[r] - theta_pull[k] * mass[r] : 0.0;
     });
     for (int k = 0; k < K; ++k) {
       fill(2 + k, 3, [&](int row, int axis) {
         std::size_t r = std::size_t(k) * rows + row;
-        return w[k] * (d_mean[3 * r + axis] * total[k] - mass[r] * total_mean[3 * k + axis]) / (total[k] * total[k]);
+        return share[k] * d_mean[3 * r + axis] - mean_pull[3 * k + axis] * mass[r];
       });
     }
     return true;
@@ -224,6 +255,7 @@ class PoissonDeviance final : public ceres::CostFunction {
   double total_ = 0;
   double max_sub_cell_[QuadratureLevels::kMaxLevel + 1] = {};  // the largest sub-cell solid angle per level
   double widen_above_ = 0;   // kappa a / 12 beyond which lobes are widened
+  double min_log_kappa_, max_log_kappa_;
 };
 
 // A pooled neighbour's deviance (PooledBin): PoissonDeviance of its counts with every lobe's
@@ -407,23 +439,25 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
   ceres::Problem problem(problem_options);
   std::vector<double*> blocks = {logits.data(), log_kappa.data()};
   for (int k = 0; k < K; ++k) blocks.push_back(&means[3 * k]);
-  problem.AddResidualBlock(new PoissonDeviance(levels, counts, K, options.outward), nullptr, blocks);
+  problem.AddResidualBlock(new PoissonDeviance(levels, counts, K, options.outward, options.min_kappa, options.max_kappa),
+                           nullptr, blocks);
   for (const PooledBin& n : options.pooled)
     problem.AddResidualBlock(
-        new TurnedDeviance(std::make_unique<PoissonDeviance>(levels, *n.counts, K, n.outward), K, n.angle, n.weight),
+        new TurnedDeviance(std::make_unique<PoissonDeviance>(levels, *n.counts, K, n.outward, options.min_kappa,
+                                                             options.max_kappa),
+                           K, n.angle, n.weight),
         nullptr, blocks);
   ceres::SphereManifold<3> sphere;
   for (int k = 0; k < K; ++k) problem.SetManifold(&means[3 * k], &sphere);
-  for (int k = 0; k < K; ++k) {
-    problem.SetParameterLowerBound(log_kappa.data(), k, std::log(options.min_kappa));
-    problem.SetParameterUpperBound(log_kappa.data(), k, std::log(options.max_kappa));
-    problem.SetParameterLowerBound(logits.data(), k, -40);
-    problem.SetParameterUpperBound(logits.data(), k, 40);
-  }
+  // The weights are a softmax of the logits, unchanged when all move together: the first is
+  // held, so that J^T J has no null direction and the normal equations (a quarter of the work
+  // of a QR of the cells-by-parameters Jacobian) can be solved by Cholesky.
   if (K == 1) problem.SetParameterBlockConstant(logits.data());
+  ceres::SubsetManifold first_logit_held(K, {0});
+  if (K > 1) problem.SetManifold(logits.data(), &first_logit_held);
 
   ceres::Solver::Options solver;
-  solver.linear_solver_type = ceres::DENSE_QR;
+  solver.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
   solver.max_num_iterations = options.max_iterations;
   solver.function_tolerance = options.function_tolerance;
   solver.num_threads = 1;
@@ -434,6 +468,11 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
   VmfFitResult result;
   result.iterations = int(summary.iterations.size());
   result.deviance = 2 * summary.final_cost;
+  // As the deviance saw them: clamped to their bounds.
+  for (int k = 0; k < K; ++k) {
+    logits[k] = std::clamp(logits[k], -kMaxLogit, kMaxLogit);
+    log_kappa[k] = std::clamp(log_kappa[k], std::log(options.min_kappa), std::log(options.max_kappa));
+  }
   double max_logit = *std::max_element(logits.begin(), logits.end()), sum = 0;
   for (int k = 0; k < K; ++k) sum += std::exp(logits[k] - max_logit);
   for (int k = 0; k < K; ++k) {

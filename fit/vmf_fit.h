@@ -32,9 +32,11 @@ struct VmfFitOptions {
   int max_iterations = 100;
   // Stop once the deviance changes by less than this share of itself between iterations:
   // 1e-5 is ~0.05 at the deviances of a bin's few thousand cells, far below one unit, the
-  // scale of statistically meaningful differences; held-out scoring, which compares model
-  // sizes thousands of units apart, uses 1e-4.
+  // scale of statistically meaningful differences. (Larger steps toward it are no guide: a fit
+  // from split lobes can move by less than 1e-4 per iteration with thousands of units to go.)
   double function_tolerance = 1e-5;
+  // Bounds on kappa; the weights' logits are held within +-40 of each other's scale. A
+  // parameter at its bound stays there while the others converge (PoissonDeviance).
   double min_kappa = 1e-6, max_kappa = 1e8;
 };
 

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -146,6 +147,41 @@ TEST(VmfFit, NearCoincidentLobesFitTheDensity) {
   EXPECT_LT(r.tv_fit, r.tv_histogram);
   double weights = 0;
   for (const VmfLobe& l : r.fit.lobes) weights += l.weight;
+  EXPECT_NEAR(weights, 1.0, 1e-12);
+}
+
+// A parameter that runs into its bound stays there and the others still converge: a lobe far
+// narrower than a cell with kappa capped at 1e3, next to a broad one that must be recovered
+// as if alone (its Fisher errors, as RecoversSeparatedMixtures), and a third lobe the data do
+// not need, whose weight must fall without holding the fit back.
+TEST(VmfFit, ParametersAtTheirBoundsDoNotHoldTheOthersBack) {
+  const std::uint64_t seed = test::test_seed(47);
+  SCOPED_TRACE(test::seed_trace(seed));
+  const std::vector<VmfLobe> truth = {{0.5, 1e5, normalize({0.2, 0.1, 0.97})}, {0.5, 20, normalize({-1, 0.2, 0})}};
+  auto grid = make_grid("healpix:16");
+  QuadratureLevels levels(*grid);
+  const std::int64_t n = 400'000;
+  std::vector<double> counts = draw_histogram(truth, *grid, n, seed);
+  VmfFitOptions options;
+  options.max_kappa = 1e3;
+  std::vector<VmfLobe> start = {{0.4, 300, normalize({0.25, 0.1, 0.96})}, {0.4, 5, normalize({-1, 0, 0.3})},
+                                {0.2, 5, normalize({0, -1, 0})}};
+  VmfFitResult fit = fit_vmf_from(counts, levels, start, options);
+  const VmfLobe& narrow = fit.lobes[0];
+  EXPECT_DOUBLE_EQ(narrow.kappa, 1e3);
+  EXPECT_LT(angle(narrow.mean, truth[0].mean), 0.06);
+  const VmfLobe& broad = *std::max_element(fit.lobes.begin() + 1, fit.lobes.end(),
+                                           [](const VmfLobe& a, const VmfLobe& b) { return a.weight < b.weight; });
+  const double nk = 0.5 * n;
+  EXPECT_LT(angle(broad.mean, truth[1].mean), 6 / std::sqrt(20 * nk));
+  EXPECT_NEAR(broad.kappa, 20, 6 * 20 * std::sqrt(2.0 / nk) + 0.02 * 20);
+  // What the spare lobe keeps it takes from the broad one: together they hold its escapes.
+  EXPECT_NEAR(narrow.weight, 0.5, 6 * std::sqrt(0.25 / n) + 1e-3);
+  double weights = 0;
+  for (const VmfLobe& l : fit.lobes) {
+    weights += l.weight;
+    EXPECT_LE(l.kappa, 1e3);
+  }
   EXPECT_NEAR(weights, 1.0, 1e-12);
 }
 
