@@ -496,16 +496,15 @@ StfModel fit_table(const Table& raw, const FitSettings& s, FitReport* report) {
     std::size_t best = 0;
     for (std::size_t i = 1; i < scores.size(); ++i)
       if (scores[i].nll < scores[best].nll) best = i;
-    const std::size_t chosen = best;
     for (std::size_t i = 0; i < scores.size(); ++i) {
       r.candidates.push_back(sizes[i]);
       r.heldout_nll.push_back(scores[i].nll);
       r.heldout_nll_error.push_back(difference_error(seen, 1, scores[i], scores[best]));
     }
-    size = sizes[chosen];
-    smoothing = ts[chosen];
-    chosen_fits = half_fits[chosen];
-    HeldOut chosen_score = std::move(scores[chosen]);
+    size = sizes[best];
+    smoothing = ts[best];
+    chosen_fits = half_fits[best];
+    HeldOut chosen_score = std::move(scores[best]);
     if (s.automatic && s.kind == ModelKind::kVmf && s.pool_neighbours && t.alpha_bins > 1) {
       neighbours = choose_pooling(seen, s, *grid, levels, sizes, half_fits, best, size, chosen_fits, chosen_score, r);
       if (cancelled(s)) return {};

@@ -452,9 +452,13 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
   // The weights are a softmax of the logits, unchanged when all move together: the first is
   // held, so that J^T J has no null direction and the normal equations (a quarter of the work
   // of a QR of the cells-by-parameters Jacobian) can be solved by Cholesky.
-  if (K == 1) problem.SetParameterBlockConstant(logits.data());
-  ceres::SubsetManifold first_logit_held(K, {0});
-  if (K > 1) problem.SetManifold(logits.data(), &first_logit_held);
+  std::unique_ptr<ceres::SubsetManifold> first_logit_held;
+  if (K == 1) {
+    problem.SetParameterBlockConstant(logits.data());
+  } else {
+    first_logit_held = std::make_unique<ceres::SubsetManifold>(K, std::vector<int>{0});
+    problem.SetManifold(logits.data(), first_logit_held.get());
+  }
 
   ceres::Solver::Options solver;
   solver.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;

@@ -35,8 +35,8 @@ struct VmfFitOptions {
   // scale of statistically meaningful differences. (Larger steps toward it are no guide: a fit
   // from split lobes can move by less than 1e-4 per iteration with thousands of units to go.)
   double function_tolerance = 1e-5;
-  // Bounds on kappa; the weights' logits are held within +-40 of each other's scale. A
-  // parameter at its bound stays there while the others converge (PoissonDeviance).
+  // Bounds on kappa (the weights' logits are bounded to [-40, 40]). A parameter at its bound
+  // stays there while the others converge (PoissonDeviance).
   double min_kappa = 1e-6, max_kappa = 1e8;
 };
 
