@@ -293,7 +293,6 @@ TEST(Walk, SubBinsMatchAFinerTable) {
   std::vector<double> multiple = alpha_marginal(fine);
   for (const auto& [key, w] : fine.once) multiple[std::size_t((key >> 1) / std::uint64_t(fine.cells))] -= w;
   multiple[0] -= fine.uncollided_half[0] + fine.uncollided_half[1];
-  const double n = double(s.paths);
   for (int b = 0; b < coarse.alpha_bins; ++b)
     for (int k = 0; k < kSubBins; ++k) {
       const double c0 = std::cos(coarse.alpha_edges[b]), c1 = std::cos(coarse.alpha_edges[b + 1]);
