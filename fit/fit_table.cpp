@@ -74,12 +74,22 @@ std::vector<double> bin_counts(const Table& t, int half, int b) {
   return counts;
 }
 
+double sum(const std::vector<double>& v) {
+  double s = 0;
+  for (double x : v) s += x;
+  return s;
+}
+
 // The escapes a fit sees per alpha bin (bin_counts), folded over the mirror symmetry of the
 // exit distribution when `image` (mirror_cells) is not empty. Folding bin by bin as the counts
-// are read keeps no second copy of the table.
+// are read keeps no second copy of the table; it keeps each bin's total.
 struct Escapes {
+  Escapes(const Table& t, std::vector<std::int64_t> mirror) : table(t), image(std::move(mirror)) {
+    for (int b = 0; b < t.alpha_bins; ++b) total.push_back(sum(bin_counts(t, -1, b)));
+  }
   const Table& table;
   std::vector<std::int64_t> image;
+  std::vector<double> total;  // per bin, both halves
   std::vector<double> counts(int half, int b) const {
     std::vector<double> c = bin_counts(table, half, b);
     if (!image.empty()) fold_over_mirror(c, image);
@@ -103,12 +113,6 @@ SingularParts singular_parts(const Table& t) {
   if (!t.once_tallied || t.uncollided_half[0] < 0) return {uncollided_escapes(t) / double(t.paths), 0.0};
   const double tau = t.medium.tau();
   return {std::exp(-tau), t.max_scatter == 0 ? 0.0 : t.medium.albedo() * once_scattered_probability(tau, t.medium.g)};
-}
-
-double sum(const std::vector<double>& v) {
-  double s = 0;
-  for (double x : v) s += x;
-  return s;
 }
 
 // Bins whose status is kBorrowed take the parameters of the nearest fitted bin (the lower
@@ -152,7 +156,7 @@ double heading(const Table& t, const std::vector<double>& counts) {
 // Whether bin b is sparse enough for its neighbours' escapes to pay (FitSettings::
 // pool_neighbours): pooling trades noise for bias, and measured on 1e7-path tables it moved no
 // model while its fits took four times as long.
-bool worth_pooling(const Table& t, int b) { return sum(bin_counts(t, -1, b)) < kPoolBelowEscapes; }
+bool worth_pooling(const Escapes& e, int b) { return e.total[std::size_t(b)] < kPoolBelowEscapes; }
 
 // `start`: fits (on a half-table, of this size or smaller) to start the lobes from, or null;
 // missing lobes come from splitting the heaviest ones (grow_lobes). `neighbours` > 0 (vmf): each
@@ -199,7 +203,7 @@ BinFits fit_bins(const Escapes& e, int half, ModelKind kind, int size, const Qua
     const OutwardFactors outward = outward_of(b);
     if (s.hemispherical) options.outward = &outward;
     OutwardFactors near[2];
-    const bool pooled = neighbours > 0 && worth_pooling(t, b);
+    const bool pooled = neighbours > 0 && worth_pooling(e, b);
     if (neighbours > 0 && !pooled && alone && alone->status[b] == BinStatus::kFitted) {
       fits.lobes[b] = alone->lobes[b];  // as fitted alone, at this size, on this half
       return;
@@ -348,7 +352,7 @@ double choose_pooling(const Escapes& e, const FitSettings& s, const DirectionGri
                       int& size, BinFits& fits, HeldOut& score, FitReport& r) {
   const std::vector<int> all = auto_candidates(s.kind);
   bool sparse = false;
-  for (int b = 0; b < e.table.alpha_bins; ++b) sparse = sparse || worth_pooling(e.table, b);
+  for (int b = 0; b < e.table.alpha_bins; ++b) sparse = sparse || worth_pooling(e, b);
   if (!sparse || best + 1 >= all.size()) return 0;
   const auto next = std::upper_bound(all.begin(), all.end(), size);
   double weight = 0;
@@ -450,13 +454,12 @@ StfModel fit_any_family(const Table& t, const FitSettings& s, FitReport& r) {
 
 }  // namespace
 
-StfModel fit_table(const Table& raw, const FitSettings& s, FitReport* report) {
+StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   if (s.any_family) {
     FitReport local;
-    return fit_any_family(raw, s, report ? *report : local);
+    return fit_any_family(t, s, report ? *report : local);
   }
   auto start = std::chrono::steady_clock::now();
-  const Table& t = raw;
   std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
   // Everything is fitted and chosen on the escapes folded over the mirror symmetry (not where
   // the uncollided escapes are unknown: they would be folded off the pole); the diagnostics
@@ -534,8 +537,7 @@ StfModel fit_table(const Table& raw, const FitSettings& s, FitReport* report) {
   // The rest (all but the once-scattered part) per alpha bin, in paths: the fitted escapes and,
   // in bin 0, the uncollided delta.
   const SingularParts exact = singular_parts(t);
-  std::vector<double> escapes(t.alpha_bins);
-  for (int b = 0; b < t.alpha_bins; ++b) escapes[b] = sum(bin_counts(t, -1, b));
+  std::vector<double> escapes = seen.total;
   escapes[0] += exact.uncollided * paths;
   double escaped = sum(escapes);
   m.escape_probability = std::min(1.0, escaped / paths + exact.once);
