@@ -59,8 +59,10 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
   for (std::size_t b = 0; b < r.bins.size(); ++b) {
     const fit::BinDiagnostics& d = r.bins[b];
     s << "    {\"bin\": " << b << ", \"status\": " << int(m.status[b]) << ", \"escapes\": " << d.escapes
-      << ", \"components\": " << d.components << ", \"deviance\": " << d.deviance << ", \"chi2_dof\": " << d.chi2_dof
-      << "}" << (b + 1 < r.bins.size() ? ",\n" : "\n");
+      << ", \"components\": " << d.components << ", \"deviance\": " << d.deviance << ", \"chi2_dof\": " << d.chi2_dof;
+    if (!r.pools.empty())
+      s << ", \"pool_width\": " << r.pools[b].width << ", \"pool_sloped\": " << (r.pools[b].sloped ? "true" : "false");
+    s << "}" << (b + 1 < r.bins.size() ? ",\n" : "\n");
   }
   s << "  ]\n}\n";
   return s.str();

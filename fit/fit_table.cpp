@@ -158,16 +158,39 @@ double heading(const Table& t, const std::vector<double>& counts) {
 // model while its fits took four times as long.
 bool worth_pooling(const Escapes& e, int b) { return e.total[std::size_t(b)] < kPoolBelowEscapes; }
 
+// Whether a half-table holds too few of bin b's escapes for `size` lobes (kEscapesPerLobe each):
+// the bin's own escapes, not the family, limit its model whatever its size, so its neighbours'
+// are worth reaching farther for (wide_pooling).
+bool capped_by_escapes(const Escapes& e, int b, int size) {
+  return e.total[std::size_t(b)] < 2 * kEscapesPerLobe * size;
+}
+
+// Whether bin b is noisy enough for a sloped pool (PoolTry) to be worth its cost: fewer than
+// kSlopedPoolEscapesPerLobe escapes per lobe of the chosen size.
+bool noisy(const Escapes& e, int b, int size) {
+  return worth_pooling(e, b) && e.total[std::size_t(b)] < kSlopedPoolEscapesPerLobe * size;
+}
+
+// Which bins a pass of fit_bins pools, and how (PoolTry): bin b with the bins within its width
+// on either side (0: alone). Bins of width 0 copy their lobes from `others` when given (fitted
+// alone or chosen before, at the same size on the same half).
+struct Pooling {
+  std::vector<PoolTry> bin;
+  const BinFits* others = nullptr;
+  bool any() const { return std::any_of(bin.begin(), bin.end(), [](const PoolTry& p) { return p.width > 0; }); }
+  PoolTry of(int b) const { return bin.empty() ? PoolTry{} : bin[std::size_t(b)]; }
+};
+
 // `start`: fits (on a half-table, of this size or smaller) to start the lobes from, or null;
-// missing lobes come from splitting the heaviest ones (grow_lobes). `neighbours` > 0 (vmf): each
-// bin worth pooling has its lobes fitted to its own escapes and, with that weight, to those of
-// the bins on either side, expected where the bin's go turned about y by the difference of
+// missing lobes come from splitting the heaviest ones (grow_lobes). `pool` (vmf): a bin of
+// width w > 0 has its lobes fitted to its own escapes and, with weights pool_weight(w, d), to
+// those of the bins d <= w away, expected where the bin's go turned about y by the difference of
 // their headings (the forward peak turns with the exit point: docs/fit.md, "Neighbour
-// pooling"); the other bins copy `alone` (the same size fitted unpooled on the same half) when
-// given.
+// pooling"), and continued linearly in alpha where the pool is sloped; it gets a lobe per
+// kEscapesPerLobe of all the escapes so weighted.
 BinFits fit_bins(const Escapes& e, int half, ModelKind kind, int size, const QuadratureLevels& levels,
                  const ShProjector* projector, const FitSettings& s, const BinFits* start = nullptr,
-                 double neighbours = 0, const BinFits* alone = nullptr) {
+                 const Pooling* pool = nullptr) {
   const Table& t = e.table;
   BinFits fits;
   fits.table = &t;
@@ -177,10 +200,11 @@ BinFits fit_bins(const Escapes& e, int half, ModelKind kind, int size, const Qua
   fits.sh.resize(t.alpha_bins);
   // Pooled fits read every bin's escapes (as neighbours); the others each bin's as it is fitted.
   std::vector<std::vector<double>> all;
-  std::vector<double> headings;
-  for (int b = 0; b < t.alpha_bins && neighbours > 0; ++b) {
+  std::vector<double> headings, totals;
+  for (int b = 0; b < t.alpha_bins && pool && pool->any(); ++b) {
     all.push_back(e.counts(half, b));
     headings.push_back(heading(t, all.back()));
+    totals.push_back(sum(all.back()));
   }
   const std::vector<double>& edges = t.alpha_edges;
   auto outward_of = [&](int b) {
@@ -196,24 +220,31 @@ BinFits fit_bins(const Escapes& e, int half, ModelKind kind, int size, const Qua
       fits.sh[b] = projector->project(counts);
       return;
     }
-    // No more lobes than the bin's escapes can support (about 50 per lobe).
-    int lobes = std::clamp(int(n / 50), 1, size);
+    const PoolTry how = pool ? pool->of(b) : PoolTry{};
+    const int width = how.width;
+    const bool pooled = width > 0;
+    if (pool && !pooled && pool->others && pool->others->status[b] == BinStatus::kFitted) {
+      fits.lobes[b] = pool->others->lobes[b];  // fitted before, at this size, on this half
+      return;
+    }
     const bool warm = start && start->status[b] == BinStatus::kFitted;
     VmfFitOptions options;
     const OutwardFactors outward = outward_of(b);
     if (s.hemispherical) options.outward = &outward;
-    OutwardFactors near[2];
-    const bool pooled = neighbours > 0 && worth_pooling(e, b);
-    if (neighbours > 0 && !pooled && alone && alone->status[b] == BinStatus::kFitted) {
-      fits.lobes[b] = alone->lobes[b];  // as fitted alone, at this size, on this half
-      return;
+    std::vector<OutwardFactors> near(2 * std::size_t(width));
+    double weighted = n;  // the escapes the lobes are fitted to, neighbours' by their weights
+    for (int side = 0; side < 2 * width; ++side) {
+      const int d = side / 2 + 1, j = side % 2 ? b + d : b - d;
+      if (j < 0 || j >= t.alpha_bins || totals[std::size_t(j)] < s.min_escapes) continue;
+      near[std::size_t(side)] = outward_of(j);
+      const double w = pool_weight(width, d);
+      options.pooled.push_back({&all[std::size_t(j)], s.hemispherical ? &near[std::size_t(side)] : nullptr,
+                                headings[j] - headings[b], w, j - b});
+      weighted += w * totals[std::size_t(j)];
     }
-    for (int side = 0; side < 2 && pooled; ++side) {
-      const int j = side == 0 ? b - 1 : b + 1;
-      if (j < 0 || j >= t.alpha_bins || sum(all[std::size_t(j)]) < s.min_escapes) continue;
-      near[side] = outward_of(j);
-      options.pooled.push_back({&all[std::size_t(j)], s.hemispherical ? &near[side] : nullptr, headings[j] - headings[b], neighbours});
-    }
+    // No more lobes than the escapes can support.
+    const int lobes = std::clamp(int(weighted / kEscapesPerLobe), 1, size);
+    options.sloped = how.sloped;
     // The final fit starts from the half-table fit of its size, already within the noise of
     // its optimum: it stops at 1e-4 (a few tenths of a unit of deviance). Fits that start from
     // split lobes or from k-means need the default 1e-5: slow progress there is not the end
@@ -221,12 +252,21 @@ BinFits fit_bins(const Escapes& e, int half, ModelKind kind, int size, const Qua
     // NLL short of its fit at 1e-5).
     VmfFitOptions refine = options;
     if (warm && half < 0) refine.function_tolerance = 1e-4;
+    // Wider pools are tried on half 0 only to rank them for each bin (wide_pooling); the final
+    // fit starts from the winner and runs to convergence. Capped, the tries cost a third: each
+    // evaluates up to 9 bins' deviances (measured: tau 1 g 0.9 at 1e5 paths, 6.5 s instead of
+    // 9.9 s a fit, the model as close to the reference).
+    if (half >= 0 && width > 1) refine.max_iterations = kPoolTryIterations;
     VmfFitResult fit = warm ? fit_vmf_from(counts, levels, grow_lobes(start->lobes[b], lobes), refine)
                             : fit_vmf(counts, levels, lobes, options);
-    // A pooled fit of the full table also starts afresh and keeps the better optimum: from a
-    // pooled half-table fit it often stays in that half's local optimum (pooling is chosen
-    // where the tables are small and noisy, so the second fit is cheap).
-    if (warm && half < 0 && pooled) {
+    // A fit pooled with the nearest neighbours alone also starts afresh on the full table and
+    // keeps the better optimum: from a pooled half-table fit it often stays in that half's local
+    // optimum (pooling is chosen where the tables are small and noisy, so the second fit is
+    // cheap). Wider pools hold several times the bin's own escapes, so their half-table fit is
+    // already a good start, and a fresh fit against up to 16 neighbours is not cheap (measured:
+    // the final fit of tau 1 g 0.9 at 1e5 paths took 9.3 s with it, 2.8 s without, and the
+    // model came no closer to the reference).
+    if (warm && half < 0 && width == 1) {
       VmfFitResult fresh = fit_vmf(counts, levels, lobes, options);
       if (fresh.deviance < fit.deviance) fit = std::move(fresh);
     }
@@ -262,6 +302,7 @@ std::vector<double> bin_probabilities(const BinFits& fits, int b, ModelKind kind
 // 1e-6 with the uniform density so that a cell the model calls empty costs a finite amount.
 struct HeldOut {
   double nll = 0;
+  std::vector<double> bin_nll;             // per bin; they sum to nll
   std::vector<std::vector<double>> log_p;  // per bin, per cell
 };
 
@@ -269,14 +310,16 @@ HeldOut score(const Escapes& e, int half, const std::vector<std::vector<double>>
   const Table& t = e.table;
   HeldOut h;
   h.log_p.resize(t.alpha_bins);
+  h.bin_nll.assign(t.alpha_bins, 0.0);
   for (int b = 0; b < t.alpha_bins; ++b) {
     std::vector<double> counts = e.counts(half, b);
     h.log_p[b].resize(t.cells);
     for (std::int64_t c = 0; c < t.cells; ++c) {
       double q = (1 - 1e-6) * p[b][c] + 1e-6 * t.solid_angle[c] / (4 * kPi);
       h.log_p[b][c] = std::log(q);
-      h.nll -= counts[c] * h.log_p[b][c];
+      h.bin_nll[b] -= counts[c] * h.log_p[b][c];
     }
+    h.nll += h.bin_nll[b];
   }
   return h;
 }
@@ -314,17 +357,17 @@ std::vector<ShSmoothing> sh_smoothings() {
 
 // Fits on half 0, scores on half 1. For SH, also picks the smoothing with the lowest held-out
 // NLL; returns it in `best_t`, and the fits in `fitted`. vMF lobes start from the fits of the
-// next smaller candidate when there are any; `neighbours` as fit_bins.
+// next smaller candidate when there are any; `pool` as fit_bins.
 HeldOut heldout_for_size(const Escapes& e, const FitSettings& s, int size, const DirectionGrid& grid,
                          const QuadratureLevels& levels, ShSmoothing& best_t, BinFits& fitted,
-                         const BinFits* smaller, double neighbours = 0, const BinFits* alone = nullptr) {
+                         const BinFits* smaller, const Pooling* pool = nullptr) {
   std::unique_ptr<ShProjector> projector;
   std::vector<double> basis;
   if (s.kind == ModelKind::kSh) {
     projector = std::make_unique<ShProjector>(grid, size);
     basis = sh_basis_at(levels.at(1), size);
   }
-  BinFits& fits = fitted = fit_bins(e, 0, s.kind, size, levels, projector.get(), s, smaller, neighbours, alone);
+  BinFits& fits = fitted = fit_bins(e, 0, s.kind, size, levels, projector.get(), s, smaller, pool);
   const Table& t = e.table;
   HeldOut best;
   best_t = {};
@@ -346,32 +389,65 @@ HeldOut heldout_for_size(const Escapes& e, const FitSettings& s, int size, const
 // tried), and in bins with few escapes (worth_pooling). Then the chosen size and the next are
 // fitted pooled on half 0 (the other bins as fitted alone); a pooled fit replaces the choice
 // (`size`, its half-0 `fits` and `score`) when its held-out NLL is lower (the rule of the
-// sizes). Returns the neighbours' weight.
-double choose_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid, const QuadratureLevels& levels,
-                      const std::vector<int>& sizes, const std::vector<BinFits>& half_fits, std::size_t best,
-                      int& size, BinFits& fits, HeldOut& score, FitReport& r) {
+// sizes). Returns each bin's pool: the nearest neighbours in the bins worth pooling when pooling
+// won, else none.
+std::vector<PoolTry> choose_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid,
+                                    const QuadratureLevels& levels, const std::vector<int>& sizes,
+                                    const std::vector<BinFits>& half_fits, std::size_t best, int& size,
+                                    BinFits& fits, HeldOut& score, FitReport& r) {
   const std::vector<int> all = auto_candidates(s.kind);
-  bool sparse = false;
-  for (int b = 0; b < e.table.alpha_bins; ++b) sparse = sparse || worth_pooling(e, b);
-  if (!sparse || best + 1 >= all.size()) return 0;
+  std::vector<PoolTry> alone(std::size_t(e.table.alpha_bins)), nearest = alone;
+  for (int b = 0; b < e.table.alpha_bins; ++b) nearest[std::size_t(b)].width = worth_pooling(e, b) ? 1 : 0;
+  if (nearest == alone || best + 1 >= all.size()) return alone;
   const auto next = std::upper_bound(all.begin(), all.end(), size);
-  double weight = 0;
+  std::vector<PoolTry> widths = alone;
   r.pool_heldout_nll.push_back(score.nll);
   for (int candidate : next == all.end() ? std::vector<int>{size} : std::vector<int>{size, *next}) {
     const auto tried = std::find(sizes.begin(), sizes.end(), candidate);
-    const BinFits* alone = tried == sizes.end() ? nullptr : &half_fits[std::size_t(tried - sizes.begin())];
+    const Pooling pool{nearest, tried == sizes.end() ? nullptr : &half_fits[std::size_t(tried - sizes.begin())]};
     ShSmoothing unused;
     BinFits pooled;
-    HeldOut h = heldout_for_size(e, s, candidate, grid, levels, unused, pooled, &fits, kNeighbourWeight, alone);
-    if (cancelled(s)) return 0;
+    HeldOut h = heldout_for_size(e, s, candidate, grid, levels, unused, pooled, &fits, &pool);
+    if (cancelled(s)) return alone;
     r.pool_sizes.push_back(candidate);
     r.pool_heldout_nll.push_back(h.nll);
     if (h.nll < score.nll) {
-      size = candidate, weight = kNeighbourWeight;
+      size = candidate, widths = nearest;
       fits = std::move(pooled), score = std::move(h);
     }
   }
-  return weight;
+  r.neighbour_weight = widths == alone ? 0 : kNeighbourWeight;
+  return widths;
+}
+
+// Wider pools (kPoolTries), fitted on half 0 in the bins they are tried in: sloped ones in the
+// noisy bins, where the lobes change their shape from bin to bin faster than the noise hides;
+// flat ones where the half-table escapes cannot carry the chosen size (capped_by_escapes),
+// whatever the family, and the exit distribution changes slowly with alpha. Each bin keeps the
+// pool whose fit gives its own held-out escapes the lowest NLL (or the choice so far). `pools`,
+// `fits` and `score` (the choice so far, on half 0) are updated bin by bin.
+void wide_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid, const QuadratureLevels& levels,
+                  int size, std::vector<PoolTry>& pools, BinFits& fits, HeldOut& score) {
+  const int bins = e.table.alpha_bins;
+  for (const PoolTry& tried : kPoolTries) {
+    Pooling pool{std::vector<PoolTry>(std::size_t(bins)), &fits};
+    for (int b = 0; b < bins; ++b)
+      if ((tried.sloped ? noisy(e, b, size) : capped_by_escapes(e, b, size)) && !(pools[std::size_t(b)] == tried))
+        pool.bin[std::size_t(b)] = tried;
+    if (!pool.any()) continue;
+    ShSmoothing unused;
+    BinFits pooled;
+    HeldOut h = heldout_for_size(e, s, size, grid, levels, unused, pooled, &fits, &pool);
+    if (cancelled(s)) return;
+    for (int b = 0; b < bins; ++b) {
+      if (pool.bin[std::size_t(b)].width == 0 || h.bin_nll[std::size_t(b)] >= score.bin_nll[std::size_t(b)]) continue;
+      pools[std::size_t(b)] = tried;
+      fits.lobes[std::size_t(b)] = std::move(pooled.lobes[std::size_t(b)]);
+      score.nll += h.bin_nll[std::size_t(b)] - score.bin_nll[std::size_t(b)];
+      score.bin_nll[std::size_t(b)] = h.bin_nll[std::size_t(b)];
+      score.log_p[std::size_t(b)] = std::move(h.log_p[std::size_t(b)]);
+    }
+  }
 }
 
 // Held-out NLL of the half-0 fits behind `flat` (its per-bin cell log-probabilities) with each
@@ -478,7 +554,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   ShSmoothing smoothing;
   BinFits chosen_fits;  // on half 0: where the final fit's lobes start
   int blend = 0;
-  double neighbours = 0;  // the neighbours' weight in each bin's fit (fit_bins)
+  Pooling pool;  // how far each bin reaches for its neighbours' escapes (fit_bins)
   if (s.automatic || s.kind == ModelKind::kSh) {
     std::vector<int> sizes = s.automatic ? auto_candidates(s.kind) : std::vector<int>{s.size};
     std::vector<HeldOut> scores;
@@ -509,7 +585,12 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
     chosen_fits = half_fits[best];
     HeldOut chosen_score = std::move(scores[best]);
     if (s.automatic && s.kind == ModelKind::kVmf && s.pool_neighbours && t.alpha_bins > 1) {
-      neighbours = choose_pooling(seen, s, *grid, levels, sizes, half_fits, best, size, chosen_fits, chosen_score, r);
+      pool.bin = choose_pooling(seen, s, *grid, levels, sizes, half_fits, best, size, chosen_fits, chosen_score, r);
+      if (cancelled(s)) return {};
+      // Bin by bin for hemispherical lobes only: with plain lobes the choice came out worse on
+      // one medium of the study (tau 4.5 g -0.5 at 1e5 paths: 0.061 against 0.053) and fits
+      // took up to 12 s (docs/fit.md, "Pools chosen bin by bin").
+      if (s.hemispherical) wide_pooling(seen, s, *grid, levels, size, pool.bin, chosen_fits, chosen_score);
       if (cancelled(s)) return {};
     }
     // Blending adds no parameter: the width with the lowest held-out NLL is kept (0: none).
@@ -522,7 +603,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   std::unique_ptr<ShProjector> projector;
   if (s.kind == ModelKind::kSh) projector = std::make_unique<ShProjector>(*grid, size);
   BinFits fits = fit_bins(seen, -1, s.kind, size, levels, projector.get(), s,
-                          chosen_fits.status.empty() ? nullptr : &chosen_fits, neighbours);
+                          chosen_fits.status.empty() ? nullptr : &chosen_fits, &pool);
   if (cancelled(s)) return {};
 
   StfModel m;
@@ -596,7 +677,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
     d.chi2_dof = chi2 / std::max(1, used - params_per_bin);
   });
   r.chosen_size = size;
-  r.neighbour_weight = neighbours;
+  r.pools = pool.bin;
   r.smoothing = smoothing.t;
   r.lanczos_window = smoothing.lanczos;
   r.fit_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -41,6 +41,24 @@ FitSettings parse_model_spec(const std::string& spec);
 // and the escapes (after two or more collisions, both halves) below which a bin is pooled.
 inline constexpr double kNeighbourWeight = 0.5;
 inline constexpr double kPoolBelowEscapes = 4e4;
+// A bin's lobes in a fit: at most one per this many escapes it is fitted to.
+inline constexpr double kEscapesPerLobe = 50;
+// How a bin's lobes are fitted to its neighbours' escapes: alone (width 0), or with the bins
+// within `width` on either side, bin b +- d weighted pool_weight(width, d), and where `sloped`
+// with the lobes continued linearly in alpha (VmfFitOptions::sloped).
+struct PoolTry {
+  int width = 0;
+  bool sloped = false;
+  bool operator==(const PoolTry&) const = default;
+};
+// A triangle in the distance d (bins): the nearest neighbours of width 1 count kNeighbourWeight.
+inline constexpr double pool_weight(int width, int d) { return 1 - d / double(width + 1); }
+// The pools tried bin by bin after the size (docs/fit.md, "Neighbour pooling"): sloped in noisy
+// bins (fewer than kSlopedPoolEscapesPerLobe escapes per lobe), flat and wide in bins whose
+// half-table escapes cannot carry the size.
+inline constexpr PoolTry kPoolTries[] = {{3, true}, {4, false}};
+inline constexpr int kPoolTryIterations = 15;
+inline constexpr double kSlopedPoolEscapesPerLobe = 400;
 
 // Candidate sizes tried by vmf:auto and sh:auto.
 std::vector<int> auto_candidates(ModelKind kind);
@@ -69,6 +87,8 @@ struct FitReport {
   std::vector<int> pool_sizes;
   std::vector<double> pool_heldout_nll;
   double neighbour_weight = 0;
+  // vmf/hvmf auto: per bin, how its fit reached for its neighbours' escapes.
+  std::vector<PoolTry> pools;
   double smoothing = 0;         // sh: heat-kernel t chosen on the held-out half
   bool lanczos_window = false;  // sh: whether the Lanczos window was chosen there too
   double fit_time_s = 0;

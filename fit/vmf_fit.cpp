@@ -261,37 +261,71 @@ class PoissonDeviance final : public ceres::CostFunction {
 // A pooled neighbour's deviance (PooledBin): PoissonDeviance of its counts with every lobe's
 // mean turned by R = R_y(angle), residuals scaled by sqrt(weight) so that its deviance counts
 // weight times. R is orthogonal, so d r / d mean = (d r / d (R mean)) R.
+//
+// With slopes (a sloped pool, VmfFitOptions::sloped) the neighbour d = PooledBin::offset bins
+// away sees each lobe's logit and log kappa moved by d times that lobe's slope, and its mean
+// turned by d times a turn of its own on top of `angle`: the bin's lobes continued linearly in
+// alpha. Three more parameter blocks then follow the means (slopes of the logits, of the log
+// kappas, and the turns), shared by all the bin's neighbours; the bin's own deviance does not
+// depend on them, so they take up the neighbours' change of shape instead of biasing the bin.
 class TurnedDeviance final : public ceres::CostFunction {
  public:
-  TurnedDeviance(std::unique_ptr<PoissonDeviance> inner, int lobes, double angle, double weight)
-      : inner_(std::move(inner)), lobes_(lobes), c_(std::cos(angle)), s_(std::sin(angle)), scale_(std::sqrt(weight)) {
+  TurnedDeviance(std::unique_ptr<PoissonDeviance> inner, int lobes, double angle, double weight, bool sloped = false,
+                 double offset = 0)
+      : inner_(std::move(inner)), lobes_(lobes), angle_(angle), scale_(std::sqrt(weight)), sloped_(sloped),
+        offset_(offset) {
     set_num_residuals(inner_->num_residuals());
     *mutable_parameter_block_sizes() = inner_->parameter_block_sizes();
+    if (sloped_)
+      for (int i = 0; i < 3; ++i) mutable_parameter_block_sizes()->push_back(lobes);
   }
 
   bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
-    std::vector<double> turned(3 * std::size_t(lobes_));
-    std::vector<const double*> p{params[0], params[1]};
-    for (int k = 0; k < lobes_; ++k) {
+    const std::size_t K = std::size_t(lobes_);
+    std::vector<double> turned(3 * K), logits(params[0], params[0] + K), log_kappa(params[1], params[1] + K);
+    std::vector<double> c(K, std::cos(angle_)), s(K, std::sin(angle_));
+    const double* const* slope = sloped_ ? params + 2 + K : nullptr;  // logits, log kappas, turns
+    for (std::size_t k = 0; k < K && slope; ++k) {
+      logits[k] += offset_ * slope[0][k], log_kappa[k] += offset_ * slope[1][k];
+      c[k] = std::cos(angle_ + offset_ * slope[2][k]), s[k] = std::sin(angle_ + offset_ * slope[2][k]);
+    }
+    std::vector<const double*> p{logits.data(), log_kappa.data()};
+    for (std::size_t k = 0; k < K; ++k) {
       const double* m = params[2 + k];
-      double* t = &turned[3 * std::size_t(k)];
-      t[0] = c_ * m[0] + s_ * m[2], t[1] = m[1], t[2] = -s_ * m[0] + c_ * m[2];
+      double* t = &turned[3 * k];
+      t[0] = c[k] * m[0] + s[k] * m[2], t[1] = m[1], t[2] = -s[k] * m[0] + c[k] * m[2];
       p.push_back(t);
     }
-    if (!inner_->Evaluate(p.data(), residuals, jacobians)) return false;
-    const int rows = num_residuals();
-    for (int r = 0; r < rows; ++r) residuals[r] *= scale_;
+    // The slopes' derivatives come from the inner ones, needed even where a block is held.
+    const std::size_t rows = std::size_t(num_residuals());
+    std::vector<std::vector<double>> own(jacobians && slope ? 2 + K : 0);
+    std::vector<double*> inner_jacobians;
+    for (std::size_t i = 0; jacobians && i < 2 + K; ++i) {
+      inner_jacobians.push_back(jacobians[i]);
+      if (!jacobians[i] && slope) own[i].resize(rows * (i < 2 ? K : 3)), inner_jacobians[i] = own[i].data();
+    }
+    if (!inner_->Evaluate(p.data(), residuals, jacobians ? inner_jacobians.data() : nullptr)) return false;
+    for (std::size_t r = 0; r < rows; ++r) residuals[r] *= scale_;
     if (!jacobians) return true;
-    for (int block = 0; block < 2; ++block)
-      if (jacobians[block])
-        for (int i = 0; i < rows * lobes_; ++i) jacobians[block][i] *= scale_;
-    for (int k = 0; k < lobes_; ++k) {
-      double* J = jacobians[2 + k];
+    for (std::size_t block = 0; block < 2; ++block) {
+      double* J = inner_jacobians[block];
       if (!J) continue;
-      for (int r = 0; r < rows; ++r) {
+      for (std::size_t i = 0; i < rows * K; ++i) J[i] *= scale_;
+      if (slope && jacobians[2 + K + block])  // d / d slope = offset d / d (the moved parameter)
+        for (std::size_t i = 0; i < rows * K; ++i) jacobians[2 + K + block][i] = offset_ * J[i];
+    }
+    for (std::size_t k = 0; k < K; ++k) {
+      double* J = inner_jacobians[2 + k];
+      if (!J) continue;
+      const double* m = params[2 + k];
+      // d (R m) / d turn = R' m with R' = [[-s, 0, c], [0, 0, 0], [-c, 0, -s]].
+      const double tx = -s[k] * m[0] + c[k] * m[2], tz = -c[k] * m[0] - s[k] * m[2];
+      double* turn = slope ? jacobians[2 + K + 2] : nullptr;
+      for (std::size_t r = 0; r < rows; ++r) {
         double* row = J + 3 * r;
         const double jx = row[0], jy = row[1], jz = row[2];  // times R_y = [[c, 0, s], [0, 1, 0], [-s, 0, c]]
-        row[0] = scale_ * (jx * c_ - jz * s_), row[1] = scale_ * jy, row[2] = scale_ * (jx * s_ + jz * c_);
+        if (turn) turn[r * K + k] = scale_ * offset_ * (jx * tx + jz * tz);
+        row[0] = scale_ * (jx * c[k] - jz * s[k]), row[1] = scale_ * jy, row[2] = scale_ * (jx * s[k] + jz * c[k]);
       }
     }
     return true;
@@ -300,7 +334,9 @@ class TurnedDeviance final : public ceres::CostFunction {
  private:
   std::unique_ptr<PoissonDeviance> inner_;
   int lobes_;
-  double c_, s_, scale_;
+  double angle_, scale_;
+  bool sloped_;
+  double offset_;
 };
 
 // Banerjee et al. (2005): kappa from the mean resultant length R in 3D.
@@ -441,12 +477,16 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
   for (int k = 0; k < K; ++k) blocks.push_back(&means[3 * k]);
   problem.AddResidualBlock(new PoissonDeviance(levels, counts, K, options.outward, options.min_kappa, options.max_kappa),
                            nullptr, blocks);
+  // Slopes of the logits, the log kappas and the turns (sloped pools), from none.
+  std::vector<double> slopes(options.sloped && !options.pooled.empty() ? 3 * std::size_t(K) : 0, 0.0);
+  std::vector<double*> pooled_blocks = blocks;
+  for (std::size_t i = 0; i < slopes.size(); i += std::size_t(K)) pooled_blocks.push_back(&slopes[i]);
   for (const PooledBin& n : options.pooled)
     problem.AddResidualBlock(
         new TurnedDeviance(std::make_unique<PoissonDeviance>(levels, *n.counts, K, n.outward, options.min_kappa,
                                                              options.max_kappa),
-                           K, n.angle, n.weight),
-        nullptr, blocks);
+                           K, n.angle, n.weight, !slopes.empty(), n.offset),
+        nullptr, pooled_blocks);
   ceres::SphereManifold<3> sphere;
   for (int k = 0; k < K; ++k) problem.SetManifold(&means[3 * k], &sphere);
   // The weights are a softmax of the logits, unchanged when all move together: the first is
@@ -455,9 +495,11 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
   std::unique_ptr<ceres::SubsetManifold> first_logit_held;
   if (K == 1) {
     problem.SetParameterBlockConstant(logits.data());
+    if (!slopes.empty()) problem.SetParameterBlockConstant(slopes.data());
   } else {
     first_logit_held = std::make_unique<ceres::SubsetManifold>(K, std::vector<int>{0});
     problem.SetManifold(logits.data(), first_logit_held.get());
+    if (!slopes.empty()) problem.SetManifold(slopes.data(), first_logit_held.get());
   }
 
   ceres::Solver::Options solver;

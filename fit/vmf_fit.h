@@ -24,11 +24,17 @@ struct PooledBin {
   const std::vector<double>* counts = nullptr;
   const OutwardFactors* outward = nullptr;  // null: plain lobes
   double angle = 0, weight = 0;
+  int offset = 0;  // its bin minus the fitted one: how far sloped lobes are continued
 };
 
 struct VmfFitOptions {
   const OutwardFactors* outward = nullptr;  // hemispherical lobes of this bin, or null
   std::vector<PooledBin> pooled;            // neighbours fitted jointly (none: the bin alone)
+  // Whether the neighbours see the lobes continued linearly in alpha (each lobe's logit, log
+  // kappa and turn sloped by parameters of their own, fitted with the lobes) rather than as
+  // they are: a local-linear fit, whose neighbours tell the bin's lobes nothing of their change
+  // of shape, only of what the bin shares with them.
+  bool sloped = false;
   int max_iterations = 100;
   // Stop once the deviance changes by less than this share of itself between iterations:
   // 1e-5 is ~0.05 at the deviances of a bin's few thousand cells, far below one unit, the
