@@ -173,10 +173,12 @@ bool noisy(const Escapes& e, int b, int size) {
 
 // Which bins a pass of fit_bins pools, and how (PoolTry): bin b with the bins within its width
 // on either side (0: alone). Bins of width 0 copy their lobes from `others` when given (fitted
-// alone or chosen before, at the same size on the same half).
+// alone or chosen before, at the same size on the same half). A `trial` pass only ranks pools
+// for wide_pooling: its pooled fits stop after kPoolTryIterations.
 struct Pooling {
   std::vector<PoolTry> bin;
   const BinFits* others = nullptr;
+  bool trial = false;
   bool any() const { return std::any_of(bin.begin(), bin.end(), [](const PoolTry& p) { return p.width > 0; }); }
   PoolTry of(int b) const { return bin.empty() ? PoolTry{} : bin[std::size_t(b)]; }
 };
@@ -252,11 +254,11 @@ BinFits fit_bins(const Escapes& e, int half, ModelKind kind, int size, const Qua
     // NLL short of its fit at 1e-5).
     VmfFitOptions refine = options;
     if (warm && half < 0) refine.function_tolerance = 1e-4;
-    // Wider pools are tried on half 0 only to rank them for each bin (wide_pooling); the final
-    // fit starts from the winner and runs to convergence. Each try evaluates up to 9 bins'
-    // deviances; capped, tau 1 g 0.9 at 1e5 paths takes about 4 s a fit instead of 6.4 s, the
-    // model at TV 0.0123 from the reference against 0.0121 (at 10 iterations: 0.0152).
-    if (half >= 0 && width > 1) refine.max_iterations = kPoolTryIterations;
+    // Trial pools only rank the pools of each bin (wide_pooling); the final fit starts from the
+    // winner and runs to convergence. Each try evaluates up to 9 bins' deviances; capped, tau 1
+    // g 0.9 at 1e5 paths takes about 4 s a fit instead of 6.4 s, the model at TV 0.0123 from the
+    // reference against 0.0121 (at 10 iterations: 0.0152).
+    if (pooled && pool->trial) refine.max_iterations = kPoolTryIterations;
     VmfFitResult fit = warm ? fit_vmf_from(counts, levels, grow_lobes(start->lobes[b], lobes), refine)
                             : fit_vmf(counts, levels, lobes, options);
     // A fit pooled with the nearest neighbours alone also starts afresh on the full table and
@@ -430,9 +432,9 @@ void wide_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& g
                   int size, std::vector<PoolTry>& pools, BinFits& fits, HeldOut& score) {
   const int bins = e.table.alpha_bins;
   for (const PoolTry& tried : kPoolTries) {
-    Pooling pool{std::vector<PoolTry>(std::size_t(bins)), &fits};
+    Pooling pool{std::vector<PoolTry>(std::size_t(bins)), &fits, true};
     for (int b = 0; b < bins; ++b)
-      if ((tried.sloped ? noisy(e, b, size) : capped_by_escapes(e, b, size)) && !(pools[std::size_t(b)] == tried))
+      if ((tried.sloped ? noisy(e, b, size) : capped_by_escapes(e, b, size)) && pools[std::size_t(b)] != tried)
         pool.bin[std::size_t(b)] = tried;
     if (!pool.any()) continue;
     ShSmoothing unused;
