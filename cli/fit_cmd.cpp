@@ -25,6 +25,7 @@ struct FitOptions {
   int alpha_degree = -1;
   int max_blend = StfModel::kMaxBlend;
   bool no_pooling = false;
+  bool raw_alpha = false;
   double tolerance = 0;
   std::string heldout;
   bool quiet = false;
@@ -34,12 +35,15 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
   std::ostringstream s;
   s << "{\n  \"model\": \"" << spec << "\", \"chosen_size\": " << r.chosen_size << ", \"smoothing\": " << r.smoothing
     << ", \"window\": \"" << (r.lanczos_window ? "lanczos" : "none") << "\""
+    << ", \"alpha_penalty\": " << r.alpha_penalty
     << ", \"family\": \"" << (m.kind == ModelKind::kSh ? "sh" : m.hemispherical ? "hvmf" : "vmf") << "\"";
   if (r.family_heldout_nll.size() == 2)
     s << ", \"family_heldout_nll\": {\"vmf\": " << r.family_heldout_nll[0] << ", \"sh\": " << r.family_heldout_nll[1] << "}";
   if (!r.blend_heldout_nll.empty()) {
     s << ", \"alpha_blend\": " << m.alpha_blend << ", \"blend_heldout_nll\": [";
     for (std::size_t i = 0; i < r.blend_heldout_nll.size(); ++i) s << (i ? ", " : "") << r.blend_heldout_nll[i];
+    s << "], \"blend_heldout_nll_error\": [";
+    for (std::size_t i = 0; i < r.blend_heldout_nll_error.size(); ++i) s << (i ? ", " : "") << r.blend_heldout_nll_error[i];
     s << "]";
   }
   if (!r.pool_sizes.empty()) {
@@ -117,6 +121,7 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
   if (o.max_blend < 0 || o.max_blend > StfModel::kMaxBlend) fail("--max-blend must be in 0..3");
   settings.max_blend = o.max_blend;
   settings.pool_neighbours = !o.no_pooling;
+  settings.smooth_alpha = !o.raw_alpha;
 
   // Every output is checked (and claimed) before any work.
   std::vector<NamedFile> files{{o.table, "the table"}, {o.heldout, "--heldout"}};
@@ -195,6 +200,8 @@ void add_fit_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--no-pooling", o->no_pooling,
                 "vmf and hvmf auto sizes: fit every alpha bin alone, never with its neighbours' escapes");
+  cmd->add_flag("--raw-alpha", o->raw_alpha,
+                "Keep each alpha bin's tallied escapes as the alpha marginal (not smoothed across bins)");
   cmd->add_option("--tolerance", o->tolerance,
                   "Target TV distance: fewest alpha bins, coarsest grid and smallest size that are certified within it");
   cmd->add_option("--heldout", o->heldout, "With --tolerance: an independent table (other seed) that certifies the fit")

@@ -37,15 +37,21 @@ double tilt_from_counts(const std::vector<double>& edges, const std::vector<doub
 }
 
 std::vector<double> fit_alpha_tilts(const Table& t, int half) {
+  std::vector<double> counts;
+  for (std::size_t j = 0; t.sub_bins > 0 && j < t.multiple_sub_half[0].size(); ++j)
+    counts.push_back((half != 1 ? t.multiple_sub_half[0][j] : 0.0) + (half != 0 ? t.multiple_sub_half[1][j] : 0.0));
+  return tilts_from_sub_counts(t, counts);
+}
+
+std::vector<double> tilts_from_sub_counts(const Table& t, const std::vector<double>& sub_counts) {
   std::vector<double> tilts;
   if (t.sub_bins == 0) return tilts;
   const std::size_t subs = std::size_t(t.sub_bins);
   for (int b = 0; b < t.alpha_bins; ++b) {
-    std::vector<double> edges(subs + 1), counts(subs, 0.0);
+    std::vector<double> edges(subs + 1);
     for (std::size_t k = 0; k <= subs; ++k) edges[k] = t.sub_edge(b, int(k));
-    for (int h = 0; h < 2; ++h)
-      for (std::size_t k = 0; k < subs && (half < 0 || half == h); ++k) counts[k] += t.multiple_sub_half[h][std::size_t(b) * subs + k];
-    tilts.push_back(tilt_from_counts(edges, counts));
+    const auto first = sub_counts.begin() + std::ptrdiff_t(std::size_t(b) * subs);
+    tilts.push_back(tilt_from_counts(edges, std::vector<double>(first, first + std::ptrdiff_t(subs))));
   }
   return tilts;
 }

@@ -19,6 +19,9 @@ double tilt_from_counts(const std::vector<double>& edges, const std::vector<doub
 // Per alpha bin of `t`, from both halves or one (half 0 or 1); empty when the table has no
 // sub-bin tallies.
 std::vector<double> fit_alpha_tilts(const Table& t, int half = -1);
+// The same from sub-bin counts laid out as the table's ([alpha_bins * sub_bins]), e.g. a
+// smoothed marginal's expected ones (smooth_alpha_marginal).
+std::vector<double> tilts_from_sub_counts(const Table& t, const std::vector<double>& sub_counts);
 
 // Of the smooth part's mass on the area fractions [u0, u1] of bin b, the shares drawn from each
 // bin's direction density: StfModel::blend_weights integrated under the bin's tilted density.

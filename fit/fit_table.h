@@ -27,6 +27,9 @@ struct FitSettings {
   // Whether the escapes are folded over their mirror symmetry as they are fitted
   // (fold_over_mirror).
   bool fold_mirror = true;
+  // Whether the alpha marginal of the escapes after two or more collisions is smoothed across
+  // the bins (smooth_alpha_marginal) rather than taken from the bins' tallied totals.
+  bool smooth_alpha = true;
   // When set (e.g. by Ctrl-C), no further bin is started and fit_table returns early with a
   // model that must be thrown away.
   const std::atomic<bool>* cancel = nullptr;
@@ -60,6 +63,16 @@ inline constexpr PoolTry kPoolTries[] = {{3, true}, {4, false}};
 inline constexpr int kPoolTryIterations = 15;
 inline constexpr double kSlopedPoolEscapesPerLobe = 400;
 
+// The bins' headings (mean exit directions' angles about y, per alpha bin) smoothed across
+// alpha for sloped pools: a sparse bin's heading scatters by degrees (a few hundred escapes
+// spread over tens of degrees), the true one turns smoothly with the exit point. Each becomes
+// the value at its bin of a local quadratic in the bin index over the bins within
+// kHeadingWindow, least squares weighted by their escapes and a triangle in the distance;
+// headings are unwrapped first, as they may cross +-pi. Bins whose window holds fewer than three
+// bins with escapes keep their own.
+inline constexpr int kHeadingWindow = 5;
+std::vector<double> smooth_headings(std::vector<double> headings, const std::vector<double>& escapes);
+
 // Candidate sizes tried by vmf:auto and sh:auto.
 std::vector<int> auto_candidates(ModelKind kind);
 
@@ -81,6 +94,7 @@ struct FitReport {
   std::vector<double> family_heldout_nll;  // auto: held-out NLL of the vmf and the sh model
   // auto: held-out NLL of the chosen size per blend width 0 .. kMaxBlend (StfModel::alpha_blend)
   std::vector<double> blend_heldout_nll;
+  std::vector<double> blend_heldout_nll_error;  // and its standard error against width 0's
   // vmf/hvmf auto, when neighbour pooling was tried: the sizes and their held-out NLL fitted
   // with the neighbours' escapes (pool_sizes), against the chosen unpooled size's; and the
   // neighbours' weight the final fit used (0: each bin alone).
@@ -91,6 +105,9 @@ struct FitReport {
   std::vector<PoolTry> pools;
   double smoothing = 0;         // sh: heat-kernel t chosen on the held-out half
   bool lanczos_window = false;  // sh: whether the Lanczos window was chosen there too
+  // The roughness penalty of the smoothed alpha marginal (smooth_alpha_marginal); -1: the
+  // bins' tallied totals were kept.
+  double alpha_penalty = -1;
   double fit_time_s = 0;
 };
 

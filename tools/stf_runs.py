@@ -12,7 +12,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 class Stf:
     def __init__(self, binary=None):
-        self.binary = binary or os.path.join(ROOT, "build", "stf")
+        self.binary = binary or os.environ.get("STF_BINARY") or os.path.join(ROOT, "build", "stf")
 
     def run(self, *args):
         """Runs stf quietly; its stderr is shown only when it fails."""
