@@ -111,12 +111,13 @@ Eigen::VectorXd fit_log_density(const Design& d, const Eigen::VectorXd& counts, 
     const Eigen::VectorXd gradient = dmean.transpose() * (counts.cwiseQuotient(mean) - Eigen::VectorXd::Ones(subs)) - P * beta;
     const Eigen::MatrixXd fisher = dmean.transpose() * mean.cwiseInverse().asDiagonal() * dmean + P;
     const Eigen::VectorXd step = fisher.ldlt().solve(gradient);
+    if (!step.allFinite()) break;
     // Half the Newton decrement is the gain a full step promises: below 1e-9 nats there is
     // nothing left to gain that a double could see in an objective of millions of nats.
     if (gradient.dot(step) < 2e-9) break;
     const double before = objective(beta);
     double scale = 1;
-    while (objective(beta + scale * step) > before && scale > 1e-6) scale *= 0.5;
+    while (!(objective(beta + scale * step) <= before) && scale > 1e-6) scale *= 0.5;
     if (!(scale > 1e-6)) break;  // no step lowers it any more: converged to rounding
     beta += scale * step;
   }

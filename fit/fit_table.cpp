@@ -176,7 +176,11 @@ bool noisy(const Escapes& e, int b, int size) {
 
 std::vector<double> smooth_headings(std::vector<double> headings, const std::vector<double>& escapes) {
   std::vector<double>& h = headings;
-  for (std::size_t b = 1; b < h.size(); ++b) h[b] -= 2 * kPi * std::round((h[b] - h[b - 1]) / (2 * kPi));
+  // Each against the last bin with escapes: an empty bin's heading (atan2(0, 0) = 0) is none.
+  for (std::size_t b = 0, last = 0, seen = 0; b < h.size(); ++b) {
+    if (seen) h[b] -= 2 * kPi * std::round((h[b] - h[last]) / (2 * kPi));
+    if (escapes[b] > 0) last = b, seen = 1;
+  }
   const int bins = int(h.size());
   std::vector<double> smooth = h;
   for (int b = 0; b < bins; ++b) {

@@ -111,12 +111,17 @@ TEST(AlphaMarginal, RecoversAKnownDensityFromPoissonCounts) {
   EXPECT_LT(smooth, expected_raw) << raw;
 }
 
-// No sub-bin tallies (older tables), or no escapes after two collisions: nothing to smooth.
+// No sub-bin tallies (older tables), or no escapes after two collisions in a half: nothing to
+// smooth.
 TEST(AlphaMarginal, EmptyWithoutSubBinsOrEscapes) {
   Table t = frame();
   const std::vector<double> zeros(std::size_t(t.alpha_bins * t.sub_bins), 0.0);
   t.multiple_sub_half = {zeros, zeros};
   EXPECT_TRUE(smooth_alpha_marginal(t).bin_escapes.empty());
+  t.multiple_sub_half[0][5] = 3;  // one half alone cannot choose the roughness
+  EXPECT_TRUE(smooth_alpha_marginal(t).bin_escapes.empty());
+  t.multiple_sub_half[1][9] = 2;
+  EXPECT_FALSE(smooth_alpha_marginal(t).bin_escapes.empty());
   t.sub_bins = 0;
   EXPECT_TRUE(smooth_alpha_marginal(t).bin_escapes.empty());
 }

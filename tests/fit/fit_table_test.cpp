@@ -241,6 +241,17 @@ TEST(FitTable, SmoothedHeadingsKeepTheTrendAndQuietTheNoise) {
   smooth = smooth_headings(wrapped, escapes);
   for (int b = 0; b < bins; ++b) EXPECT_NEAR(smooth[b] - smooth[0], 0.05 * b, 1e-9) << b;
 
+  // An empty bin (heading atan2(0, 0) = 0) where the headings cross +-pi breaks no unwrapping.
+  std::vector<double> gap = wrapped, sparse = escapes;
+  int cross = 0;
+  while (gap[cross + 1] > 0) ++cross;
+  gap[cross + 1] = 0, sparse[cross + 1] = 0;
+  smooth = smooth_headings(gap, sparse);
+  for (int b = 0; b < bins; ++b)
+    if (b != cross + 1) {
+      EXPECT_NEAR(smooth[b] - smooth[0], 0.05 * b, 1e-9) << b;
+    }
+
   std::vector<double> lone(bins, 0.0);
   lone[10] = lone[30] = 100;
   smooth = smooth_headings(wrapped, lone);
