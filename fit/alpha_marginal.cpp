@@ -99,7 +99,7 @@ double poisson_nll(const Eigen::VectorXd& counts, const Eigen::VectorXd& mean) {
 // Penalised maximum likelihood by Fisher scoring with step halving, from `beta`.
 Eigen::VectorXd fit_log_density(const Design& d, const Eigen::VectorXd& counts, double penalty, Eigen::VectorXd beta) {
   const Eigen::MatrixXd P = penalty * d.roughness;
-  auto objective = [&](const Eigen::VectorXd& b) { return poisson_nll(counts, sub_bin_means(d, b)) + 0.5 * b.dot(P * b); };
+  auto objective = [&](const Eigen::VectorXd& b, const Eigen::VectorXd& mean) { return poisson_nll(counts, mean) + 0.5 * b.dot(P * b); };
   const Eigen::Index subs = counts.size();
   for (int iteration = 0; iteration < 200; ++iteration) {
     const Eigen::VectorXd density = (d.basis * beta).array().min(700.0).exp().matrix().cwiseProduct(d.area);
@@ -115,9 +115,10 @@ Eigen::VectorXd fit_log_density(const Design& d, const Eigen::VectorXd& counts, 
     // Half the Newton decrement is the gain a full step promises: below 1e-9 nats there is
     // nothing left to gain that a double could see in an objective of millions of nats.
     if (gradient.dot(step) < 2e-9) break;
-    const double before = objective(beta);
+    const double before = objective(beta, mean);
     double scale = 1;
-    while (!(objective(beta + scale * step) <= before) && scale > 1e-6) scale *= 0.5;
+    auto at = [&](double a) { const Eigen::VectorXd b = beta + a * step; return objective(b, sub_bin_means(d, b)); };
+    while (!(at(scale) <= before) && scale > 1e-6) scale *= 0.5;
     if (!(scale > 1e-6)) break;  // no step lowers it any more: converged to rounding
     beta += scale * step;
   }
@@ -153,7 +154,6 @@ AlphaMarginal smooth_alpha_marginal(const Table& t) {
       beta[h] = fit_log_density(d, half[h], penalty, beta[h]);
       nll += poisson_nll(half[1 - h], sub_bin_means(d, beta[h]));
     }
-    m.penalties.push_back(penalty), m.heldout_nll.push_back(nll);
     if (nll < best) best = nll, m.penalty = penalty;
   }
   const Eigen::VectorXd start = Eigen::VectorXd::Constant(kBasis, std::log(both.sum() / (4 * std::numbers::pi)));

@@ -14,7 +14,6 @@ struct AlphaMarginal {
   std::vector<double> bin_escapes;  // [alpha_bins]: expected escapes (both halves), summing to the tallied total
   std::vector<double> sub_escapes;  // [alpha_bins * sub_bins]: the same per sub-bin
   double penalty = 0;               // the roughness penalty chosen on the held-out halves
-  std::vector<double> penalties, heldout_nll;  // all tried, with their two-fold held-out NLL
 };
 
 // The log density per unit area is a cubic B-spline in alpha with kMarginalKnots knots at
