@@ -11,6 +11,7 @@
 #include "cli.h"
 #include "evaluate.h"
 #include "fit_table.h"
+#include "h5io.h"
 #include "model_io.h"
 #include "stf/pack.h"
 #include "tolerance.h"
@@ -156,24 +157,55 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
 }
 
 struct EvalOptions {
-  std::string candidate, reference, json;
+  std::string candidate, reference, json, cells;
 };
 
+// `stf eval --cells`: the candidate's exit distribution in the reference's layout, with the
+// reference's alpha edges and grid, so that it can be compared or plotted cell by cell.
+void write_cells(AtomicOutput& out, const EvalOptions& o, const Table& reference, const std::vector<double>& joint) {
+  {
+    H5::Exception::dontPrint();
+    H5::H5File file(out.temp_path(), H5F_ACC_TRUNC);
+    h5::put_attr(file, "format", std::string("stf-cells"));
+    h5::put_attr(file, "format_version", 1);
+    h5::put_attr(file, "candidate", o.candidate);
+    h5::put_attr(file, "reference", o.reference);
+    h5::put_attr(file, "grid", reference.grid);
+    H5::Group escape = file.createGroup("/escape");
+    const hsize_t bins = hsize_t(reference.alpha_bins), cells = hsize_t(reference.cells);
+    h5::put_dataset(escape, "probability", {bins, cells}, joint.data());
+    h5::put_dataset(escape, "alpha_edges", {bins + 1}, reference.alpha_edges.data());
+    H5::Group grid = file.createGroup("/grid");
+    h5::put_dataset(grid, "direction", {cells, 3}, reference.direction.front().data());
+    h5::put_dataset(grid, "solid_angle", {cells}, reference.solid_angle.data());
+  }
+  out.commit();
+}
+
 void run_eval(const EvalOptions& o) {
-  std::optional<AtomicOutput> json_out;
-  if (!o.json.empty()) json_out.emplace(o.json, "--json", std::vector<NamedFile>{{o.candidate, "the candidate"}, {o.reference, "--reference"}});
+  const std::vector<NamedFile> inputs{{o.candidate, "the candidate"}, {o.reference, "--reference"}};
+  std::optional<AtomicOutput> json_out, cells_out;
+  if (!o.json.empty()) json_out.emplace(o.json, "--json", inputs);
+  if (!o.cells.empty()) {
+    std::vector<NamedFile> keep = inputs;
+    if (json_out) keep.push_back(json_out->named());
+    cells_out.emplace(o.cells, "--cells", keep);
+  }
   std::string format = fit::file_format(o.candidate);
   if (format != "stf-model" && format != "stf-table")
     fail("'" + o.candidate + "' is neither an stf model nor an stf table");
   Table reference = read_table(o.reference);
   fit::Evaluation ev;
+  std::vector<double> joint;
+  std::vector<double>* keep_joint = cells_out ? &joint : nullptr;
   try {
     ev = format == "stf-model"
-             ? fit::evaluate(fit::read_model(o.candidate), reference, fit::read_chi2_dof(o.candidate))
-             : fit::evaluate(read_table(o.candidate), reference);
+             ? fit::evaluate(fit::read_model(o.candidate), reference, fit::read_chi2_dof(o.candidate), keep_joint)
+             : fit::evaluate(read_table(o.candidate), reference, keep_joint);
   } catch (const std::invalid_argument& e) {
     fail(std::string("--reference: ") + e.what());
   }
+  if (cells_out) write_cells(*cells_out, o, reference, joint);
   std::string json = fit::to_json(ev);
   if (json_out) write_file(*json_out, json);
   else std::fputs(json.c_str(), stdout);
@@ -216,6 +248,8 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("candidate", o->candidate, "Model or raw table (HDF5)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--reference", o->reference, "Reference table (HDF5), same alpha bins")->required()->check(CLI::ExistingFile);
   cmd->add_option("--json", o->json, "Write the JSON here instead of stdout");
+  cmd->add_option("--cells", o->cells,
+                  "Also write the candidate's exit distribution binned in the reference's layout (HDF5)");
   cmd->callback([o] { run_eval(*o); });
 }
 

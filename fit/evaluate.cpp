@@ -37,9 +37,11 @@ BinError compare(const std::vector<double>& p, const std::vector<double>& q) {
 }
 
 // Weighted totals over bins by the reference's alpha marginal; `candidate(b)` gives the
-// candidate's probability of reference bin b and its cell distribution there.
+// candidate's probability of reference bin b and its cell distribution there. `joint`, when
+// given, receives the candidate's joint (bin, cell) probabilities.
 template <typename CandidateBin>
-Evaluation evaluate_bins(const Table& reference, CandidateBin candidate) {
+Evaluation evaluate_bins(const Table& reference, CandidateBin candidate, std::vector<double>* joint) {
+  if (joint) joint->assign(std::size_t(reference.alpha_bins) * std::size_t(reference.cells), 0.0);
   Evaluation ev;
   std::vector<double> mass(reference.alpha_bins);
   std::vector<std::vector<double>> q(reference.alpha_bins);
@@ -53,6 +55,8 @@ Evaluation evaluate_bins(const Table& reference, CandidateBin candidate) {
     BinError e = mass[b] > 0 ? compare(p, q[b]) : BinError{};
     e.weight = total > 0 ? mass[b] / total : 0;
     for (std::size_t c = 0; c < p.size(); ++c) ev.joint_tv += 0.5 * std::abs(probability * p[c] - e.weight * q[b][c]);
+    if (joint)
+      for (std::size_t c = 0; c < p.size(); ++c) (*joint)[std::size_t(b) * p.size() + c] = probability * p[c];
     ev.per_alpha.push_back(e);
     if (e.weight == 0) continue;
     ev.tv += e.weight * e.tv;
@@ -138,12 +142,13 @@ std::pair<double, std::vector<double>> BinnedModel::bin(int b, const SmoothCells
   return {probability, std::move(p)};
 }
 
-Evaluation evaluate(const StfModel& m, const Table& reference, const std::vector<double>& chi2_dof) {
+Evaluation evaluate(const StfModel& m, const Table& reference, const std::vector<double>& chi2_dof,
+                    std::vector<double>* joint) {
   std::unique_ptr<DirectionGrid> grid = make_grid(reference.grid);
   const BinnedModel binned(m, reference, *grid);
   const QuadratureLevels levels(*grid);
   SmoothCellCache smooth(m, levels);
-  Evaluation ev = evaluate_bins(reference, [&](int b) { return binned.bin(b, std::ref(smooth)); });
+  Evaluation ev = evaluate_bins(reference, [&](int b) { return binned.bin(b, std::ref(smooth)); }, joint);
   if (chi2_dof.size() == ev.per_alpha.size()) {
     // Over the bins that have a value (fitted bins; borrowed and empty ones have -1).
     double sum = 0, weight = 0;
@@ -158,7 +163,7 @@ Evaluation evaluate(const StfModel& m, const Table& reference, const std::vector
   return ev;
 }
 
-Evaluation evaluate(const Table& candidate, const Table& reference) {
+Evaluation evaluate(const Table& candidate, const Table& reference, std::vector<double>* joint) {
   if (alpha_group_size(candidate.alpha_edges, reference) != 1)
     throw std::invalid_argument("alpha bins differ from the reference's (" + std::to_string(candidate.alpha_bins) +
                                 " vs " + std::to_string(reference.alpha_bins) + ")");
@@ -170,7 +175,7 @@ Evaluation evaluate(const Table& candidate, const Table& reference) {
     double n;
     std::vector<double> p = bin_distribution(candidate, b, n);
     return std::pair(escaped > 0 ? n / escaped : 0.0, p);
-  });
+  }, joint);
   ev.table_bytes = std::int64_t(candidate.alpha_bins) * candidate.cells * 4;
   return ev;
 }

@@ -83,9 +83,12 @@ class SmoothCellCache {
 
 // A model's alpha bins may be groups of the reference's (a tolerance fit's): each reference
 // bin is then compared with the model bin holding it. Throws std::invalid_argument when the
-// alpha bins do not match that way (or, for tables, differ, or the grids differ).
-Evaluation evaluate(const StfModel& model, const Table& reference, const std::vector<double>& chi2_dof = {});
-Evaluation evaluate(const Table& candidate, const Table& reference);
+// alpha bins do not match that way (or, for tables, differ, or the grids differ). `joint`, when
+// given, receives the candidate's exit distribution in the reference's layout: the probability
+// of each (alpha bin, cell) per escape, row-major [bins, cells], summing to 1 (`stf eval --cells`).
+Evaluation evaluate(const StfModel& model, const Table& reference, const std::vector<double>& chi2_dof = {},
+                    std::vector<double>* joint = nullptr);
+Evaluation evaluate(const Table& candidate, const Table& reference, std::vector<double>* joint = nullptr);
 
 std::string to_json(const Evaluation& e);
 

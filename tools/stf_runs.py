@@ -56,8 +56,9 @@ class Stf:
         os.remove(out)
         return float(((y * w).sum(axis=1) < 0)[smooth].sum()) / len(smooth)
 
-    def evaluate(self, candidate, reference, out):
-        self.run("eval", candidate, "--reference", reference, "--json", out)
+    def evaluate(self, candidate, reference, out, cells=None):
+        """`stf eval`'s JSON; with `cells`, also writes the candidate binned there (--cells)."""
+        self.run("eval", candidate, "--reference", reference, "--json", out, *(["--cells", cells] if cells else []))
         with open(out) as f:
             return json.load(f)
 

@@ -150,6 +150,38 @@ TEST_F(Cli, FitAndEvalProduceModelAndJson) {
   EXPECT_EQ(stf("eval " + out("t.h5") + " --reference " + out("ref.h5") + " --json " + out("raw.json")).status, 0);
 }
 
+// --cells: the candidate's exit distribution in the reference's layout, a distribution (it sums
+// to 1) whose TV from the reference's is the joint TV that eval reports.
+TEST_F(Cli, EvalCellsHoldTheCandidateInTheReferenceLayout) {
+  const std::string medium = "precompute --sigma-s 2 --sigma-a 0.5 --g 0.3 --alpha-bins 6 --grid healpix:2 --quiet ";
+  ASSERT_EQ(stf(medium + "--paths 20000 -o " + out("t.h5")).status, 0);
+  ASSERT_EQ(stf(medium + "--paths 80000 --seed 2 -o " + out("ref.h5")).status, 0);
+  ASSERT_EQ(stf("fit " + out("t.h5") + " --model hvmf:2 --quiet -o " + out("m.h5")).status, 0);
+  const stf::Table reference = stf::read_table(out("ref.h5"));
+  std::vector<double> q = reference.weight();
+  double escaped = 0;
+  for (double w : q) escaped += w;
+  for (const char* candidate : {"m.h5", "t.h5"}) {
+    Result eval = stf("eval " + out(candidate) + " --reference " + out("ref.h5") + " --json " + out("e.json") +
+                      " --cells " + out("c.h5"));
+    ASSERT_EQ(eval.status, 0) << eval.err;
+    std::ifstream in(out("e.json"));
+    const std::string json((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string key = "\"joint_tv_distance\": ";
+    const double joint_tv = std::stod(json.substr(json.find(key) + key.size()));
+    H5::H5File f(out("c.h5"), H5F_ACC_RDONLY);
+    EXPECT_EQ(stf::h5::get_string(f, "format"), "stf-cells");
+    const std::vector<double> p = stf::h5::get_dataset(f, "/escape/probability", {6, 48});
+    EXPECT_EQ(stf::h5::get_dataset(f, "/escape/alpha_edges", {7}), reference.alpha_edges);
+    EXPECT_EQ(stf::h5::dataset_shape(f, "/grid/direction"), (std::vector<hsize_t>{48, 3}));
+    double total = 0, tv = 0;
+    for (std::size_t i = 0; i < p.size(); ++i) total += p[i], tv += 0.5 * std::abs(p[i] - q[i] / escaped);
+    EXPECT_NEAR(total, 1, 1e-9) << candidate;
+    EXPECT_NEAR(tv, joint_tv, 1e-8) << candidate;
+    EXPECT_GT(tv, 0) << candidate;
+  }
+}
+
 // A sparse forward-scattering table: hvmf:auto tries neighbour pooling and says what it chose
 // in the report; --no-pooling fits every bin alone and the report has no pooling scores.
 TEST_F(Cli, FitReportsNeighbourPoolingAndNoPoolingTurnsItOff) {

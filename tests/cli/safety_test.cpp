@@ -111,6 +111,8 @@ TEST_F(Safety, AnOutputThatIsAnInputIsRefusedAndTheInputKept) {
       {fit + "-o " + out("x.h5") + " --report " + out("t.h5"), "--report"},
       {fit + "-o " + out("x.h5") + " --pack " + out("x.h5"), "--pack"},
       {"eval " + out("m.h5") + " --reference " + out("t.h5") + " --json " + out("t.h5"), "--json"},
+      {"eval " + out("m.h5") + " --reference " + out("t.h5") + " --cells " + out("m.h5"), "--cells"},
+      {"eval " + out("m.h5") + " --reference " + out("t.h5") + " --json " + out("x.h5") + " --cells " + out("x.h5"), "--cells"},
       {"sample " + out("m.h5") + " --count 10 -o " + out("m.h5"), "-o"},
       {"pack " + out("m.h5") + " -o " + out("m.h5"), "-o"},
       {"plot " + out("t.h5") + " --alpha 10 -o " + out("u.h5") + " " + out("u.h5"), "-o"},
