@@ -231,6 +231,7 @@ TEST_F(Cli, FitAndEvalRejectBadInput) {
       {"fit " + out("missing.h5") + " -o " + out("m.h5"), "missing.h5"},
       {"fit " + out("t.h5") + " -o /nonexistent-folder/m.h5", "-o"},
       {"eval " + out("t.h5") + " --reference " + out("other.h5"), "--reference"},
+      {"eval " + out("t.h5") + " --reference " + out("other.h5") + " --cells " + out("m.h5"), "--reference"},
       {"fit " + out("t.h5") + " --tolerance 0.1 -o " + out("m.h5"), "--heldout"},
       {"fit " + out("t.h5") + " --tolerance 1.5 --heldout " + out("t.h5") + " -o " + out("m.h5"), "--tolerance"},
       {"fit " + out("t.h5") + " --tolerance 0.1 --heldout " + out("t.h5") + " -o " + out("m.h5"), "--heldout"},
