@@ -62,6 +62,9 @@ inline constexpr double pool_weight(int width, int d) { return 1 - d / double(wi
 inline constexpr PoolTry kPoolTries[] = {{3, true}, {4, false}};
 inline constexpr int kPoolTryIterations = 15;
 inline constexpr double kSlopedPoolEscapesPerLobe = 400;
+// The most memory a pass of pooled fits keeps every bin's outward factors in (healpix:16 x 45
+// bins: 23 MB; healpix:64 x 45 would take 370 MB and computes them per use instead).
+inline constexpr double kOutwardCacheBytes = 256e6;
 
 // The bins' headings (mean exit directions' angles about y, per alpha bin) smoothed across
 // alpha for sloped pools: a sparse bin's heading scatters by degrees (a few hundred escapes
