@@ -88,9 +88,10 @@ double area_share(const Table& reference, int b, int f) {
 std::vector<double> smooth_cell_probabilities(const StfModel& m, int b, const QuadratureLevels& levels) {
   if (m.kind == ModelKind::kVmf) {
     std::vector<VmfLobe> lobes(m.vmf.begin() + std::ptrdiff_t(b) * m.lobes, m.vmf.begin() + std::ptrdiff_t(b + 1) * m.lobes);
-    // The same quadrature rules the fitter used for lobes this narrow.
+    // The quadrature levels the fitter used for lobes this narrow; hemispherical lobes with the
+    // outward factor's means over sub-cells, so that cells the tangent planes cut keep their share.
     if (!m.hemispherical) return vmf_cell_probabilities(lobes, levels);
-    const OutwardFactors outward = outward_factors(levels, m.alpha_edges[std::size_t(b)], m.alpha_edges[std::size_t(b) + 1]);
+    const OutwardFactors outward = outward_cell_means(levels, m.alpha_edges[std::size_t(b)], m.alpha_edges[std::size_t(b) + 1]);
     return vmf_cell_probabilities(lobes, levels, 1e8, &outward);
   }
   return density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, w); }, levels.at(2));

@@ -447,6 +447,17 @@ QuadratureLevels::QuadratureLevels(const DirectionGrid& grid) {
       widest = std::min(widest, dot(centres_[i / std::size_t(q.per_cell)], q.point[i]));
     spread_.push_back(std::acos(std::clamp(widest, -1.0, 1.0)) + 1e-9);
   }
+  const CellQuadrature& finest = levels_[kMaxLevel];
+  for (int level = 0; level < kMaxLevel; ++level) {
+    const CellQuadrature& q = levels_[std::size_t(level)];
+    for (std::size_t i = 0; i < finest.point.size(); ++i) {
+      const std::size_t first = i / std::size_t(finest.per_cell) * std::size_t(q.per_cell);
+      std::size_t nearest = first;
+      for (std::size_t k = first + 1; k < first + std::size_t(q.per_cell); ++k)
+        if (dot(q.point[k], finest.point[i]) > dot(q.point[nearest], finest.point[i])) nearest = k;
+      finest_parent_[std::size_t(level)].push_back(std::uint32_t(nearest));
+    }
+  }
   std::vector<double> omega = grid.solid_angles();
   cell_solid_angle_ = *std::max_element(omega.begin(), omega.end());
   pole_cell_ = grid.cell({0, 0, 1});
@@ -535,6 +546,22 @@ OutwardFactors outward_factors(const QuadratureLevels& levels, double a0, double
   const OutwardBin factor(a0, a1);
   for (int level = 0; level <= QuadratureLevels::kMaxLevel; ++level)
     for (const Vec3& x : levels.at(level).point) f[std::size_t(level)].push_back(factor(x));
+  return f;
+}
+
+OutwardFactors outward_cell_means(const QuadratureLevels& levels, double a0, double a1) {
+  constexpr int finest = QuadratureLevels::kMaxLevel;
+  OutwardFactors f;
+  const OutwardBin factor(a0, a1);
+  const CellQuadrature& q = levels.at(finest);
+  for (const Vec3& x : q.point) f[finest].push_back(factor(x));
+  for (int level = 0; level < finest; ++level) {
+    const std::vector<std::uint32_t>& parent = levels.finest_parent(level);
+    std::vector<double> weighted(levels.at(level).point.size(), 0.0), area(weighted.size(), 0.0);
+    for (std::size_t i = 0; i < q.point.size(); ++i)
+      weighted[parent[i]] += q.weight[i] * f[finest][i], area[parent[i]] += q.weight[i];
+    for (std::size_t k = 0; k < weighted.size(); ++k) f[std::size_t(level)].push_back(weighted[k] / area[k]);
+  }
   return f;
 }
 
