@@ -71,6 +71,7 @@ def density_parts(reference_path):
     parts = np.zeros((3,) + weight.shape, dtype=bool)
     for b in range(weight.shape[0]):
         if weight[b].sum() <= 0:
+            parts[2, b] = True  # a bin the reference never reached: all tail
             continue
         order = np.argsort(-weight[b] / solid_angle, kind="stable")
         before = (np.cumsum(weight[b][order]) - weight[b][order]) / weight[b].sum()  # mass of denser cells

@@ -161,9 +161,10 @@ struct EvalOptions {
 };
 
 // `stf eval --cells`: the candidate's exit distribution in the reference's layout, with the
-// reference's alpha edges and grid, so that it can be compared or plotted cell by cell.
+// reference's alpha edges and grid, so that it can be compared or plotted cell by cell. Written
+// to the output's temporary file; run_eval commits it with the JSON.
 void write_cells(AtomicOutput& out, const EvalOptions& o, const Table& reference, const std::vector<double>& joint) {
-  {
+  try {
     H5::Exception::dontPrint();
     H5::H5File file(out.temp_path(), H5F_ACC_TRUNC);
     h5::put_attr(file, "format", std::string("stf-cells"));
@@ -178,14 +179,17 @@ void write_cells(AtomicOutput& out, const EvalOptions& o, const Table& reference
     H5::Group grid = file.createGroup("/grid");
     h5::put_dataset(grid, "direction", {cells, 3}, reference.direction.front().data());
     h5::put_dataset(grid, "solid_angle", {cells}, reference.solid_angle.data());
+  } catch (const H5::Exception& e) {
+    fail("--cells: cannot write '" + o.cells + "': " + e.getDetailMsg());
   }
-  out.commit();
 }
 
 void run_eval(const EvalOptions& o) {
   const std::vector<NamedFile> inputs{{o.candidate, "the candidate"}, {o.reference, "--reference"}};
   std::optional<AtomicOutput> json_out, cells_out;
   if (!o.json.empty()) json_out.emplace(o.json, "--json", inputs);
+  if (o.cells == "-" && (o.json.empty() || o.json == "-"))
+    fail("--cells - would put the HDF5 file on stdout with the JSON; give --json a file");
   if (!o.cells.empty()) {
     std::vector<NamedFile> keep = inputs;
     if (json_out) keep.push_back(json_out->named());
@@ -209,6 +213,7 @@ void run_eval(const EvalOptions& o) {
   std::string json = fit::to_json(ev);
   if (json_out) write_file(*json_out, json);
   else std::fputs(json.c_str(), stdout);
+  if (cells_out) cells_out->commit();  // after the JSON: a failed command leaves neither
   std::fprintf(stderr, "stf eval: tv %.4g (joint %.4g), kl %.4g%s\n", ev.tv, ev.joint_tv, ev.kl,
                ev.model_bytes >= 0 ? (", " + std::to_string(ev.model_bytes) + " model bytes").c_str() : "");
 }

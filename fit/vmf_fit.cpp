@@ -560,7 +560,10 @@ OutwardFactors outward_cell_means(const QuadratureLevels& levels, double a0, dou
     std::vector<double> weighted(levels.at(level).point.size(), 0.0), area(weighted.size(), 0.0);
     for (std::size_t i = 0; i < q.point.size(); ++i)
       weighted[parent[i]] += q.weight[i] * f[finest][i], area[parent[i]] += q.weight[i];
-    for (std::size_t k = 0; k < weighted.size(); ++k) f[std::size_t(level)].push_back(weighted[k] / area[k]);
+    // (Every sub-cell holds finest points on both grids; the point value stands in otherwise.)
+    const CellQuadrature& coarse = levels.at(level);
+    for (std::size_t k = 0; k < weighted.size(); ++k)
+      f[std::size_t(level)].push_back(area[k] > 0 ? weighted[k] / area[k] : factor(coarse.point[k]));
   }
   return f;
 }

@@ -232,6 +232,7 @@ TEST_F(Cli, FitAndEvalRejectBadInput) {
       {"fit " + out("t.h5") + " -o /nonexistent-folder/m.h5", "-o"},
       {"eval " + out("t.h5") + " --reference " + out("other.h5"), "--reference"},
       {"eval " + out("t.h5") + " --reference " + out("other.h5") + " --cells " + out("m.h5"), "--reference"},
+      {"eval " + out("t.h5") + " --reference " + out("t.h5") + " --cells -", "--cells"},
       {"fit " + out("t.h5") + " --tolerance 0.1 -o " + out("m.h5"), "--heldout"},
       {"fit " + out("t.h5") + " --tolerance 1.5 --heldout " + out("t.h5") + " -o " + out("m.h5"), "--tolerance"},
       {"fit " + out("t.h5") + " --tolerance 0.1 --heldout " + out("t.h5") + " -o " + out("m.h5"), "--heldout"},
@@ -246,6 +247,7 @@ TEST_F(Cli, FitAndEvalRejectBadInput) {
   }
   auto names = files();
   EXPECT_EQ(std::count(names.begin(), names.end(), std::string("m.h5")), 0);
+  for (const std::string& name : names) EXPECT_EQ(name.find(".tmp-"), std::string::npos) << name;
 }
 
 // stf sample's output layout (CONTRACT.md "Samples"), and --eval giving back the same pdfs.
