@@ -13,6 +13,7 @@ namespace stf::fit {
 
 namespace {
 
+constexpr int kMarginalKnots = 24;
 constexpr int kDegree = 3;
 constexpr int kBasis = kMarginalKnots + kDegree - 1;  // clamped cubic B-splines on the knots
 constexpr int kNodes = 8;                             // Gauss-Legendre nodes per sub-bin
@@ -125,13 +126,14 @@ Eigen::VectorXd fit_log_density(const Design& d, const Eigen::VectorXd& counts, 
   return beta;
 }
 
-}  // namespace
-
+// The roughness penalties tried: 1 to 1e6 in half decades.
 std::vector<double> marginal_penalties() {
   std::vector<double> p;
   for (int k = 0; k <= 12; ++k) p.push_back(std::pow(10.0, 0.5 * k));
   return p;
 }
+
+}  // namespace
 
 AlphaMarginal smooth_alpha_marginal(const Table& t) {
   AlphaMarginal m;

@@ -16,15 +16,12 @@ struct AlphaMarginal {
   double penalty = 0;               // the roughness penalty chosen on the held-out halves
 };
 
-// The log density per unit area is a cubic B-spline in alpha with kMarginalKnots knots at
-// pi (k / (kMarginalKnots - 1))^2, dense near the pole where thin forward media put their
-// exits; its coefficients' second differences are penalised (a P-spline) with the weight
-// chosen among marginal_penalties() (1 to 1e6 in half decades) by fitting each half of the
-// paths and scoring the other.
+// The log density per unit area is a cubic B-spline in alpha with 24 knots at pi (k / 23)^2,
+// dense near the pole where thin forward media put their exits; its coefficients' second
+// differences are penalised (a P-spline) with the weight chosen among 1 to 1e6 in half decades
+// by fitting each half of the paths and scoring the other.
 // Empty (the counts are kept) when the table has no sub-bin tallies, no separate tally of the
 // once-scattered escapes, or no escapes after two or more collisions in either half.
-inline constexpr int kMarginalKnots = 24;
-std::vector<double> marginal_penalties();
 AlphaMarginal smooth_alpha_marginal(const Table& t);
 
 }  // namespace stf::fit

@@ -245,9 +245,9 @@ BinFits fit_bins(const Escapes& e, int half, ModelKind kind, int size, const Qua
   // computed once for the pass where they fit in kOutwardCacheBytes (they were 7% of a pooled
   // fit's time), else again for every bin that reads them.
   std::vector<OutwardFactors> outward_cache;
-  // Per bin: 1 + 1/4 + 1/16 of the finest level's points, 8 bytes each.
-  const double finest = double(levels.at(QuadratureLevels::kMaxLevel).point.size());
-  const double cache_bytes = double(t.alpha_bins) * finest * (21.0 / 16) * 8;
+  double points = 0;  // per bin: a factor at every point of every level
+  for (int level = 0; level <= QuadratureLevels::kMaxLevel; ++level) points += double(levels.at(level).point.size());
+  const double cache_bytes = double(t.alpha_bins) * points * sizeof(double);
   if (s.hemispherical && kind == ModelKind::kVmf && !all.empty() && cache_bytes <= kOutwardCacheBytes) {
     outward_cache.resize(std::size_t(t.alpha_bins));
     for_each_bin(t.alpha_bins, s, [&](int b) { outward_cache[std::size_t(b)] = outward_of(b); });
