@@ -110,10 +110,25 @@ double uncollided_escapes(const Table& t) {
 struct SingularParts {
   double uncollided = 0, once = 0;
 };
+bool singular_parts_exact(const Table& t) { return t.once_tallied && t.uncollided_half[0] >= 0; }
 SingularParts singular_parts(const Table& t) {
-  if (!t.once_tallied || t.uncollided_half[0] < 0) return {uncollided_escapes(t) / double(t.paths), 0.0};
+  if (!singular_parts_exact(t)) return {uncollided_escapes(t) / double(t.paths), 0.0};
   const double tau = t.medium.tau();
   return {std::exp(-tau), t.max_scatter == 0 ? 0.0 : t.medium.albedo() * once_scattered_probability(tau, t.medium.g)};
+}
+
+// What a tallied share of the other outcomes (escapes after two or more collisions, absorption,
+// truncation) is multiplied by to become a probability per path. The paths that neither escaped
+// uncollided nor after one collision split among those outcomes independently of how many they
+// were, so each outcome's share of them times the exact 1 - p0 - p1 estimates its probability
+// with the singular parts' noise taken out: at tau 1 g 0.9 (albedo 0.95) the standard deviation
+// of the escapes after two or more collisions halves. The three then sum to 1 with the singular
+// parts. Without exact singular parts, 1 (the plain share of all paths).
+double rest_scale(const Table& t) {
+  if (!singular_parts_exact(t)) return 1.0;
+  const SingularParts exact = singular_parts(t);
+  const double rest_paths = double(t.paths) - uncollided_escapes(t) - t.once_weight();
+  return rest_paths > 0 ? (1.0 - exact.uncollided - exact.once) * double(t.paths) / rest_paths : 1.0;
 }
 
 // Bins whose status is kBorrowed take the parameters of the nearest fitted bin (the lower
@@ -704,8 +719,9 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   m.sigma_s = t.medium.sigma_s, m.sigma_a = t.medium.sigma_a, m.g = t.medium.g;
   m.radius = t.medium.radius, m.tau = t.medium.tau(), m.albedo = t.medium.albedo();
   double paths = double(t.paths);
-  m.absorbed_fraction = t.absorbed_weight / paths;
-  m.truncated_fraction = t.truncated_weight / paths;
+  const double rest = rest_scale(t);
+  m.absorbed_fraction = rest * t.absorbed_weight / paths;
+  m.truncated_fraction = rest * t.truncated_weight / paths;
   m.alpha_edges = t.alpha_edges;
   m.status = fits.status;
   // The rest (all but the once-scattered part) per alpha bin, in paths: the fitted escapes and,
@@ -713,6 +729,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   const SingularParts exact = singular_parts(t);
   const AlphaMarginal marginal = s.smooth_alpha ? smooth_alpha_marginal(t) : AlphaMarginal{};
   std::vector<double> escapes = marginal.bin_escapes.empty() ? seen.total : marginal.bin_escapes;
+  for (double& e : escapes) e *= rest;
   escapes[0] += exact.uncollided * paths;
   double escaped = sum(escapes);
   m.escape_probability = std::min(1.0, escaped / paths + exact.once);
