@@ -96,15 +96,18 @@ void sum_to_root(Table& part) {
                       part.runtime_s,      part.uncollided_half[0], part.uncollided_half[1]};
   double sum[7] = {};
   MPI_Reduce(totals, sum, 7, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
-  std::int64_t collisions = part.collisions, all_collisions = 0;
-  MPI_Reduce(&collisions, &all_collisions, 1, MPI_INT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
+  // Collisions, the absorbed paths' collisions, and how many ranks do not know the latter.
+  std::int64_t counts[3] = {part.collisions, std::max<std::int64_t>(part.absorbed_collisions, 0), part.absorbed_collisions < 0},
+               all_counts[3] = {};
+  MPI_Reduce(counts, all_counts, 3, MPI_INT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
   double runtime = part.runtime_s, longest = 0;
   MPI_Reduce(&runtime, &longest, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
   if (!the_world.root()) return;
   part.escaped_weight = sum[0], part.absorbed_weight = sum[1], part.truncated_weight = sum[2];
   part.paths = std::int64_t(sum[3]);
   part.uncollided_half = {sum[5], sum[6]};
-  part.collisions = all_collisions;
+  part.collisions = all_counts[0];
+  part.absorbed_collisions = all_counts[2] > 0 ? -1 : all_counts[1];
   part.runtime_s = longest;  // wall clock of the run: its slowest rank
   part.chunk_first = 0, part.chunk_last = part.chunk_count;
 }

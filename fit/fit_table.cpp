@@ -117,18 +117,62 @@ SingularParts singular_parts(const Table& t) {
   return {std::exp(-tau), t.max_scatter == 0 ? 0.0 : t.medium.albedo() * once_scattered_probability(tau, t.medium.g)};
 }
 
-// What a tallied share of the other outcomes (escapes after two or more collisions, absorption,
-// truncation) is multiplied by to become a probability per path. The paths that neither escaped
-// uncollided nor after one collision split among those outcomes independently of how many they
-// were, so each outcome's share of them times the exact 1 - p0 - p1 estimates its probability
-// with the singular parts' noise taken out: at tau 1 g 0.9 (albedo 0.95) the standard deviation
-// of the escapes after two or more collisions halves. The three then sum to 1 with the singular
-// parts. Without exact singular parts, 1 (the plain share of all paths).
-double rest_scale(const Table& t) {
-  if (!singular_parts_exact(t)) return 1.0;
+// Probabilities per path of the walk's other outcomes: the escapes after two or more collisions
+// (as the factor that turns their tallied count into paths), absorption and truncation. They
+// sum to 1 with the exact singular parts. Without exact singular parts, the plain shares.
+struct RestProbabilities {
+  double fitted_scale = 1, absorbed = 0, truncated = 0;
+};
+
+// Absorption estimated with three control variates of known mean (docs/design.md, "Singular
+// parts"): the uncollided and the once-scattered indicators (means p0, p1) and
+// D = (1 - albedo) c - A over a path of c decided collisions, A its absorption (mean 0: every
+// decided collision absorbs with probability 1 - albedo, whatever came before). Their
+// covariances with each other and with A follow from the table's totals, the collisions of the
+// absorbed paths among them; the regression on all three is the linear estimator of least
+// variance, at most that of A's plain share and of (1 - albedo) c alone. Returns -1 where the
+// table does not tally the absorbed paths' collisions or D is constant (albedo 0 or 1).
+double absorption_by_regression(const Table& t, const SingularParts& exact) {
+  const double n = double(t.paths), a = t.medium.albedo(), pa = t.absorbed_weight / n;
+  const double decided = double(t.collisions) - t.truncated_weight;  // a truncated path's last one is not
+  const double var_d = a * (1 - a) * decided / n;
+  if (t.absorbed_collisions < 0 || !(var_d > 0)) return -1;
+  const double p0 = exact.uncollided, p1 = exact.once;
+  Eigen::Matrix3d zz;
+  zz << p0 * (1 - p0), -p0 * p1, 0,  //
+      -p0 * p1, p1 * (1 - p1), (1 - a) * p1,  //
+      0, (1 - a) * p1, var_d;
+  const Eigen::Vector3d za(-p0 * pa, -p1 * pa, (1 - a) * double(t.absorbed_collisions) / n - pa);
+  const Eigen::Vector3d mean(uncollided_escapes(t) / n - p0, t.once_weight() / n - p1,
+                             ((1 - a) * decided - t.absorbed_weight) / n);
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(zz);
+  if (ldlt.info() != Eigen::Success || !(ldlt.isPositive())) return -1;
+  return pa - ldlt.solve(za).dot(mean);
+}
+
+// The paths that neither escaped uncollided nor after one collision split among the other
+// outcomes independently of how many they were, so each outcome's share of them times the exact
+// 1 - p0 - p1 estimates its probability with the singular parts' noise taken out (at tau 1 g 0.9,
+// albedo 0.95, the standard deviation of the escapes after two or more collisions halves).
+// Absorption then comes from the regression where the table allows it, and the escapes after two
+// or more collisions take what is left: with rare absorption (albedo near 1) the collision count
+// knows it far better than the absorbed paths do (tau 16, albedo 0.999: a tenth of the standard
+// deviation).
+RestProbabilities rest_probabilities(const Table& t) {
+  const double n = double(t.paths);
+  RestProbabilities r{1.0, t.absorbed_weight / n, t.truncated_weight / n};
+  if (!singular_parts_exact(t)) return r;
   const SingularParts exact = singular_parts(t);
-  const double rest_paths = double(t.paths) - uncollided_escapes(t) - t.once_weight();
-  return rest_paths > 0 ? (1.0 - exact.uncollided - exact.once) * double(t.paths) / rest_paths : 1.0;
+  const double rest = 1.0 - exact.uncollided - exact.once;
+  const double rest_paths = n - uncollided_escapes(t) - t.once_weight();
+  if (!(rest_paths > 0)) return r;
+  const double share = rest / rest_paths;
+  r = {share * n, share * t.absorbed_weight, share * t.truncated_weight};
+  const double absorbed = absorption_by_regression(t, exact);
+  const double fitted_escapes = t.escaped_weight - uncollided_escapes(t) - t.once_weight();
+  const double fitted = rest - absorbed - r.truncated;
+  if (absorbed >= 0 && fitted > 0 && fitted_escapes > 0) r = {fitted * n / fitted_escapes, absorbed, r.truncated};
+  return r;
 }
 
 // Bins whose status is kBorrowed take the parameters of the nearest fitted bin (the lower
@@ -719,9 +763,9 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   m.sigma_s = t.medium.sigma_s, m.sigma_a = t.medium.sigma_a, m.g = t.medium.g;
   m.radius = t.medium.radius, m.tau = t.medium.tau(), m.albedo = t.medium.albedo();
   double paths = double(t.paths);
-  const double rest = rest_scale(t);
-  m.absorbed_fraction = rest * t.absorbed_weight / paths;
-  m.truncated_fraction = rest * t.truncated_weight / paths;
+  const RestProbabilities rest = rest_probabilities(t);
+  m.absorbed_fraction = rest.absorbed;
+  m.truncated_fraction = rest.truncated;
   m.alpha_edges = t.alpha_edges;
   m.status = fits.status;
   // The rest (all but the once-scattered part) per alpha bin, in paths: the fitted escapes and,
@@ -729,7 +773,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   const SingularParts exact = singular_parts(t);
   const AlphaMarginal marginal = s.smooth_alpha ? smooth_alpha_marginal(t) : AlphaMarginal{};
   std::vector<double> escapes = marginal.bin_escapes.empty() ? seen.total : marginal.bin_escapes;
-  for (double& e : escapes) e *= rest;
+  for (double& e : escapes) e *= rest.fitted_scale;
   escapes[0] += exact.uncollided * paths;
   double escaped = sum(escapes);
   m.escape_probability = std::min(1.0, escaped / paths + exact.once);

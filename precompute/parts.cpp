@@ -69,6 +69,8 @@ void write_checkpoint(const std::string& path, const std::string& fingerprint, c
       put_attr(file, "absorbed", std::int64_t(p.tally.absorbed));
       put_attr(file, "truncated", std::int64_t(p.tally.truncated));
       put_attr(file, "collisions", std::int64_t(p.tally.collisions));
+      if (p.tally.absorbed_collisions_known)
+        put_attr(file, "absorbed_collisions", std::int64_t(p.tally.absorbed_collisions));
       put_attr(file, "uncollided_even", std::int64_t(p.tally.uncollided[0]));
       put_attr(file, "uncollided_odd", std::int64_t(p.tally.uncollided[1]));
       H5::Group root = file.openGroup("/");
@@ -102,6 +104,8 @@ Progress read_checkpoint(const std::string& path, const std::string& fingerprint
     p.tally.absorbed = std::uint64_t(get_int64(file, "absorbed"));
     p.tally.truncated = std::uint64_t(get_int64(file, "truncated"));
     p.tally.collisions = std::uint64_t(get_int64(file, "collisions"));
+    p.tally.absorbed_collisions_known = has_attr(file, "absorbed_collisions");
+    if (p.tally.absorbed_collisions_known) p.tally.absorbed_collisions = std::uint64_t(get_int64(file, "absorbed_collisions"));
     p.tally.uncollided[0] = std::uint64_t(get_int64(file, "uncollided_even"));
     p.tally.uncollided[1] = std::uint64_t(get_int64(file, "uncollided_odd"));
     for (std::int32_t d : get_int_dataset(file, "/done", {hsize_t(range.last - range.first)})) p.done.push_back(char(d != 0));
@@ -159,6 +163,7 @@ void add_part(Table& whole, const Table& p) {
   whole.absorbed_weight += p.absorbed_weight;
   whole.truncated_weight += p.truncated_weight;
   whole.collisions += p.collisions;
+  whole.absorbed_collisions = whole.absorbed_collisions < 0 || p.absorbed_collisions < 0 ? -1 : whole.absorbed_collisions + p.absorbed_collisions;
   whole.runtime_s += p.runtime_s;  // compute time spent on the run, over all parts
   whole.chunk_first = std::min(whole.chunk_first, p.chunk_first);
   whole.chunk_last = std::max(whole.chunk_last, p.chunk_last);

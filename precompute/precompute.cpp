@@ -208,6 +208,7 @@ std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& 
   table.absorbed_weight = double(tally.absorbed);
   table.truncated_weight = double(tally.truncated);
   table.collisions = std::int64_t(tally.collisions);
+  table.absorbed_collisions = tally.absorbed_collisions_known ? std::int64_t(tally.absorbed_collisions) : -1;
   table.runtime_s = seconds();
   table.generator = "stf " STF_VERSION;
   return table;

@@ -92,6 +92,7 @@ void write_table(const Table& t, const std::string& path) {
     put_attr(file, "absorbed_weight", t.absorbed_weight);
     put_attr(file, "truncated_weight", t.truncated_weight);
     put_attr(file, "collisions", t.collisions);
+    if (t.absorbed_collisions >= 0) put_attr(file, "absorbed_collisions", t.absorbed_collisions);
     put_attr(file, "runtime_s", t.runtime_s);
     put_attr(file, "generator", t.generator);
     put_attr(file, "chunk_first", t.chunk_first);
@@ -227,6 +228,7 @@ Table read_table(const std::string& path) {
     t.absorbed_weight = get_double(file, "absorbed_weight");
     t.truncated_weight = get_double(file, "truncated_weight");
     t.collisions = get_int64(file, "collisions");
+    t.absorbed_collisions = has_attr(file, "absorbed_collisions") ? get_int64(file, "absorbed_collisions") : -1;
     t.runtime_s = get_double(file, "runtime_s");
     t.generator = get_string(file, "generator");
     if (has_attr(file, "chunk_count")) {

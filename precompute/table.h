@@ -60,6 +60,8 @@ struct Table {
     return sub_edges.empty() ? double(k) / sub_bins : sub_edges[std::size_t(b) * std::size_t(sub_bins + 1) + std::size_t(k)];
   }
   std::int64_t collisions = 0;  // scattering and absorption events over all paths
+  // The absorbed paths' collisions, summed; -1 for tables written before stf tallied it.
+  std::int64_t absorbed_collisions = -1;
   // Which chunks of the run's deterministic chunk stream the table holds: [chunk_first,
   // chunk_last) of chunk_count, for a run of run_paths paths. A part (stf precompute --shard)
   // holds a sub-range; parts that cover the run sum to its table (stf merge).

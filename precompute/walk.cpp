@@ -32,6 +32,7 @@ void ChunkTally::add_to(Tally& tally) const {
   tally.absorbed += absorbed;
   tally.truncated += truncated;
   tally.collisions += collisions;
+  tally.absorbed_collisions += absorbed_collisions;
 }
 
 void ChunkTally::clear() {
@@ -39,7 +40,7 @@ void ChunkTally::clear() {
   once.clear();
   multiple_sub.clear();
   uncollided[0] = uncollided[1] = 0;
-  escaped = absorbed = truncated = collisions = 0;
+  escaped = absorbed = truncated = collisions = absorbed_collisions = 0;
 }
 
 AlphaBins::AlphaBins(int bins) : cos_edges_(bins + 1) {
@@ -288,7 +289,7 @@ bool walk_chunk(const WalkSetup& setup, std::uint64_t seed, std::uint64_t chunk,
       const int i = finished[j];
       switch (L.event[i]) {
         case kEscaped: escapes.add(L, i); ++tally.escaped; break;
-        case kAbsorbed: ++tally.absorbed; break;
+        case kAbsorbed: ++tally.absorbed, tally.absorbed_collisions += L.collisions[i]; break;
         default: ++tally.truncated; break;
       }
       tally.collisions += L.collisions[i];

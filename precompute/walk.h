@@ -64,6 +64,12 @@ struct Tally {
   // Escapes after two or more collisions per half, [alpha_bins * kSubBins] (in counts too).
   std::vector<double> multiple_sub[2];
   std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0;
+  // The collisions of the absorbed paths, summed (their last one included): with `collisions`
+  // it gives the covariance a fit needs to estimate the absorption from the collision count
+  // (fit/fit_table.cpp, rest_probabilities). Unknown (false) when resumed from a checkpoint
+  // written before stf tallied it.
+  std::uint64_t absorbed_collisions = 0;
+  bool absorbed_collisions_known = true;
 
   Tally(int alpha_bins, std::int64_t cells);
 };
@@ -76,7 +82,7 @@ struct ChunkTally {
   std::vector<std::uint64_t> once;  // the escapes after exactly one collision, again
   std::vector<std::uint32_t> multiple_sub;  // the others, as 2 (bin kSubBins + sub-bin) + half
   std::uint64_t uncollided[2] = {0, 0};
-  std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0;
+  std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0, absorbed_collisions = 0;
 
   void add_to(Tally& tally) const;
   void clear();

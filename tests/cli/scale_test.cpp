@@ -22,6 +22,8 @@ void expect_same_table(const std::string& a_path, const std::string& b_path) {
   EXPECT_EQ(a.solid_angle, b.solid_angle);
   EXPECT_EQ(a.paths, b.paths);
   EXPECT_EQ(a.collisions, b.collisions);
+  EXPECT_EQ(a.absorbed_collisions, b.absorbed_collisions);
+  EXPECT_GE(b.absorbed_collisions, 0);
   EXPECT_EQ(a.escaped_weight, b.escaped_weight);
   EXPECT_EQ(a.absorbed_weight, b.absorbed_weight);
   EXPECT_FALSE(b.is_part());

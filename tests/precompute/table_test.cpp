@@ -37,6 +37,8 @@ TEST(Table, WriteReadRoundTripIsExact) {
   EXPECT_EQ(r.escaped_weight, t.escaped_weight);
   EXPECT_EQ(r.truncated_weight, t.truncated_weight);
   EXPECT_EQ(r.collisions, t.collisions);
+  EXPECT_EQ(r.absorbed_collisions, t.absorbed_collisions);
+  EXPECT_GE(t.absorbed_collisions, std::int64_t(t.absorbed_weight));  // every absorbed path collided
   EXPECT_EQ(r.generator, t.generator);
 }
 

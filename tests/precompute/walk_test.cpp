@@ -81,6 +81,7 @@ TEST(Walk, AlbedoZeroLeavesOnlyTheUnscatteredEscape) {
   EXPECT_EQ(t.weight()[grid->cell({0, 0, 1})], t.escaped_weight);
   EXPECT_EQ(t.truncated_weight, 0);
   EXPECT_EQ(double(t.collisions), t.absorbed_weight);  // one collision each, all absorbing
+  EXPECT_EQ(double(t.absorbed_collisions), t.absorbed_weight);
   expect_binomial(t.escaped_weight, double(s.paths), std::exp(-2.0), "uncollided escapes");
 }
 
@@ -347,6 +348,7 @@ TEST(Walk, SameSeedSameTableForAnyThreadCount) {
     EXPECT_EQ(tables[i].multiple_sub_half, tables[0].multiple_sub_half);
     EXPECT_EQ(tables[i].absorbed_weight, tables[0].absorbed_weight);
     EXPECT_EQ(tables[i].collisions, tables[0].collisions);
+    EXPECT_EQ(tables[i].absorbed_collisions, tables[0].absorbed_collisions);
   }
   s.seed = 78;
   EXPECT_NE(run({5, 0.5, 0.6, 1}, s).weight(), tables[0].weight());
