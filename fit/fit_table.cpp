@@ -130,8 +130,11 @@ struct RestProbabilities {
 // decided collision absorbs with probability 1 - albedo, whatever came before). Their
 // covariances with each other and with A follow from the table's totals, the collisions of the
 // absorbed paths among them; the regression on all three is the linear estimator of least
-// variance, at most that of A's plain share and of (1 - albedo) c alone. Returns -1 where the
-// table does not tally the absorbed paths' collisions or D is constant (albedo 0 or 1).
+// variance, for many paths at most that of A's plain share and of (1 - albedo) c alone. Its
+// coefficients come from the same totals as the means they multiply, which biases it by O(1/n)
+// (measured about -0.9 / n per path: 9e-6 at 1e5 paths, a fifth of its standard deviation).
+// Returns -1 where the table does not tally the absorbed paths' collisions or D is constant
+// (albedo 0 or 1).
 double absorption_by_regression(const Table& t, const SingularParts& exact) {
   const double n = double(t.paths), a = t.medium.albedo(), pa = t.absorbed_weight / n;
   const double decided = double(t.collisions) - t.truncated_weight;  // a truncated path's last one is not
@@ -157,7 +160,8 @@ double absorption_by_regression(const Table& t, const SingularParts& exact) {
 // Absorption then comes from the regression where the table allows it, and the escapes after two
 // or more collisions take what is left: with rare absorption (albedo near 1) the collision count
 // knows it far better than the absorbed paths do (tau 16, albedo 0.999: a tenth of the standard
-// deviation).
+// deviation). Where no path is left after the exact parts (tiny tau or tables), nothing tallied
+// can carry the rest: it goes to absorption, which is what a renderer makes of a lost path.
 RestProbabilities rest_probabilities(const Table& t) {
   const double n = double(t.paths);
   RestProbabilities r{1.0, t.absorbed_weight / n, t.truncated_weight / n};
@@ -165,7 +169,7 @@ RestProbabilities rest_probabilities(const Table& t) {
   const SingularParts exact = singular_parts(t);
   const double rest = 1.0 - exact.uncollided - exact.once;
   const double rest_paths = n - uncollided_escapes(t) - t.once_weight();
-  if (!(rest_paths > 0)) return r;
+  if (!(rest_paths > 0)) return {1.0, std::max(rest, 0.0), 0.0};
   const double share = rest / rest_paths;
   r = {share * n, share * t.absorbed_weight, share * t.truncated_weight};
   const double absorbed = absorption_by_regression(t, exact);

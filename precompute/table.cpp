@@ -177,6 +177,8 @@ std::string table_error(const Table& t) {
   const double paths = double(t.paths);
   if (std::abs(t.escaped_weight + t.absorbed_weight + t.truncated_weight - paths) > 1e-9 * paths)
     return "escaped + absorbed + truncated weight is not the number of paths";
+  if (t.absorbed_collisions >= 0 && !(t.absorbed_weight <= double(t.absorbed_collisions) && t.absorbed_collisions <= t.collisions))
+    return "absorbed_collisions must lie between the absorbed paths and all collisions";
   double escaped = 0;
   for (const auto& half : t.weight_half)
     for (double w : half) {

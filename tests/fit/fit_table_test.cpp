@@ -330,6 +330,8 @@ TEST(FitTable, OnceScatteredEscapesAreAnExactPartNotFitted) {
     StfModel lm = fit_table(l, parse_model_spec("vmf:2"));
     EXPECT_LT(lm.once_fraction, 2e-6) << c.what;
     EXPECT_NEAR(lm.uncollided_probability() * lm.escape_probability, std::exp(-c.medium.tau()), 1e-12) << c.what;
+    // No path left after the exact parts (tau 1e-6: all escaped uncollided): they still sum to 1.
+    EXPECT_NEAR(lm.escape_probability + lm.absorbed_fraction + lm.truncated_fraction, 1.0, 1e-12) << c.what;
     if (c.medium.tau() < 1e-3) {
       EXPECT_GT(lm.uncollided_probability(), 1 - 2e-6) << c.what;
     }
@@ -339,8 +341,11 @@ TEST(FitTable, OnceScatteredEscapesAreAnExactPartNotFitted) {
 // The walk's other outcomes take their probabilities given the exact singular parts, and
 // absorption by regression on three control variates (fit_table.cpp, rest_probabilities). Over
 // 100 tables of 4000 paths per medium: they sum to 1 with the exact parts; the absorbed and the
-// fitted escapes' probabilities are unbiased (means within 4.5 standard errors of a 4e6-path
-// table's plain shares); and the absorbed fraction's variance is below `bound` times that of
+// fitted escapes' probabilities are unbiased to O(1/n) (means within 4.5 standard errors and 2 / n
+// of the same estimates from a 4e6-path table: the regression's coefficients come from the
+// totals they correct, a bias of about -0.9 / n measured over media and sizes, which at 4000
+// paths is up to 0.8 of a table's standard deviation and 8 of the mean's standard error); and
+// the absorbed fraction's variance is below `bound` times that of
 // the plain share, the fitted escapes' in the thin medium below 0.01 times. The bounds are
 // twice the mean ratios over four other sets of 100 seeds (absorbed: thin 0.015, tau 8 at
 // albedo 0.999 0.049, albedo 0.5 0.40; fitted escapes, thin: 0.0041, where the conditional
@@ -357,13 +362,13 @@ TEST(FitTable, OtherOutcomesTakeTheExactPartsAndTheCollisionCount) {
     auto fitted_share = [](const Table& t) {
       return (t.escaped_weight - t.uncollided_half[0] - t.uncollided_half[1] - t.once_weight()) / double(t.paths);
     };
-    const Table big = make_table(medium, 4000000, "healpix:2", 9, 999);
-    const double fitted_truth = fitted_share(big), absorbed_truth = big.absorbed_weight / double(big.paths);
+    FitSettings f = parse_model_spec("vmf:1");
+    f.smooth_alpha = false;
+    const StfModel big = fit_table(make_table(medium, 4000000, "healpix:2", 9, 999), f);
+    const double fitted_truth = big.escape_probability - exact, absorbed_truth = big.absorbed_fraction;
     std::vector<double> fitted, absorbed, fitted_plain, absorbed_plain;
     for (std::int64_t seed = 1; seed <= 100; ++seed) {
       const Table t = make_table(medium, 4000, "healpix:2", 9, seed);
-      FitSettings f = parse_model_spec("vmf:1");
-      f.smooth_alpha = false;
       const StfModel m = fit_table(t, f);
       ASSERT_NEAR(m.escape_probability + m.absorbed_fraction + m.truncated_fraction, 1.0, 1e-12) << seed;
       fitted.push_back(m.escape_probability - exact);
@@ -378,10 +383,11 @@ TEST(FitTable, OtherOutcomesTakeTheExactPartsAndTheCollisionCount) {
       for (double e : x) v += (e - m) * (e - m);
       return v / double(x.size() - 1);
     };
-    auto se = [&](const std::vector<double>& x, double p) { return std::sqrt(variance(x) / 100 + p * (1 - p) / 4e6); };
+    // The big table's estimate has the small ones' variance over 1000 (its own bias is 1e-3 of theirs).
+    auto allowed = [&](const std::vector<double>& x) { return 4.5 * std::sqrt(variance(x) / 100 + variance(x) / 1000) + 2.0 / 4000; };
     const double tau = medium.tau();
-    EXPECT_NEAR(mean(absorbed), absorbed_truth, 4.5 * se(absorbed, absorbed_truth)) << tau;
-    EXPECT_NEAR(mean(fitted), fitted_truth, 4.5 * se(fitted, fitted_truth)) << tau;
+    EXPECT_NEAR(mean(absorbed), absorbed_truth, allowed(absorbed)) << tau;
+    EXPECT_NEAR(mean(fitted), fitted_truth, allowed(fitted)) << tau;
     EXPECT_LT(variance(absorbed), c.bound * variance(absorbed_plain))
         << tau << ": " << variance(absorbed) << " against " << variance(absorbed_plain);
     if (tau == 1) EXPECT_LT(variance(fitted), 0.01 * variance(fitted_plain)) << variance(fitted) << " against " << variance(fitted_plain);

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "parts.h"
 #include "precompute.h"
 
 namespace stf {
@@ -43,17 +44,46 @@ TEST(Table, WriteReadRoundTripIsExact) {
 }
 
 // The sub-bin tallies must add up to each bin's escapes after two or more collisions.
-TEST(Table, InconsistentSubBinsAreRefused) {
+// A small table of an absorbing medium (tau 2.5, albedo 0.8).
+Table small_table() {
   PrecomputeSettings s;
   s.paths = 20'000;
   s.alpha_bins = 6;
   s.grid = "healpix:1";
-  Table t = *precompute({2, 0.5, 0.5, 1}, s);
+  return *precompute({2, 0.5, 0.5, 1}, s);
+}
+
+TEST(Table, InconsistentSubBinsAreRefused) {
+  Table t = small_table();
   EXPECT_EQ(table_error(t), "");
   t.multiple_sub_half[1][3] += 1;
   EXPECT_NE(table_error(t).find("multiple_sub_half"), std::string::npos) << table_error(t);
   t.multiple_sub_half[1][3] = -1;
   EXPECT_NE(table_error(t).find("multiple_sub_half"), std::string::npos) << table_error(t);
+}
+
+// The absorbed paths' collisions: checked against the absorbed paths and all collisions; unknown
+// (-1, tables written before stf tallied it) survives a round trip and makes a merge unknown.
+TEST(Table, AbsorbedCollisionsAreCheckedAndMayBeUnknown) {
+  const Table t = small_table();
+  ASSERT_GT(t.absorbed_collisions, std::int64_t(t.absorbed_weight));
+  Table low = t, high = t;
+  low.absorbed_collisions = std::int64_t(t.absorbed_weight) - 1;
+  high.absorbed_collisions = t.collisions + 1;
+  EXPECT_NE(table_error(low).find("absorbed_collisions"), std::string::npos) << table_error(low);
+  EXPECT_NE(table_error(high).find("absorbed_collisions"), std::string::npos) << table_error(high);
+  Table old = t;
+  old.absorbed_collisions = -1;
+  EXPECT_EQ(table_error(old), "");
+  const std::string path = ::testing::TempDir() + "/old_" + std::to_string(::getpid()) + ".h5";
+  write_table(old, path);
+  EXPECT_EQ(read_table(path).absorbed_collisions, -1);
+  std::remove(path.c_str());
+  Table whole = t;
+  add_part(whole, t);
+  EXPECT_EQ(whole.absorbed_collisions, 2 * t.absorbed_collisions);
+  add_part(whole, old);
+  EXPECT_EQ(whole.absorbed_collisions, -1);
 }
 
 TEST(Table, ReadingANonTableFails) {
