@@ -109,12 +109,12 @@ def main():
     cells_path = path("cells")
     parts = density_parts(path("reference"))
     with h5py.File(path("reference"), "r") as f:
-        exact = f["escape/weight"][()]
-    exact /= exact.sum()  # per escape, as eval normalises the reference
+        reference_cells = f["escape/weight"][()]
+    reference_cells /= reference_cells.sum()  # per escape, as eval normalises the reference
     stf.precompute(medium, 3e6, 3, path("worth"), a.grid, a.alpha_bins)
     worth = {"joint_tv": stf.evaluate(path("worth"), path("reference"), scratch, cells_path)["joint_tv_distance"],
              "marginal_tv": marginal_tv(table_marginal(path("worth")), reference),
-             "split": split_tv(binned(cells_path), exact, parts)}
+             "split": split_tv(binned(cells_path), reference_cells, parts)}
     variants = {a.model: []}
     if a.variant:
         variants[a.model + " " + a.variant] = a.variant.split()
@@ -129,7 +129,7 @@ def main():
                          "marginal_tv": marginal_tv(model_marginal(path("model"), a.tau), reference),
                          "fit_seconds": seconds}
             model_cells = binned(cells_path)
-            row[name]["split"] = split_tv(model_cells, exact, parts)
+            row[name]["split"] = split_tv(model_cells, reference_cells, parts)
             summed[name] = summed.get(name, 0) + model_cells
         rows.append(row)
         print(f"seed_spread: seed {seed} done", file=sys.stderr, flush=True)
@@ -138,7 +138,7 @@ def main():
             os.remove(path(what))
     os.remove(scratch)
     means = {name: statistics.mean(r[name]["joint_tv"] for r in rows) for name in ["raw", *variants]}
-    mean_model = {name: split_tv(total / len(rows), exact, parts) for name, total in summed.items()}
+    mean_model = {name: split_tv(total / len(rows), reference_cells, parts) for name, total in summed.items()}
     mean_split = {name: {k: statistics.mean(r[name]["split"][k] for r in rows) for k in worth["split"]}
                   for name in variants}
     with open(os.path.join(a.out, "seed_spread.json"), "w") as f:

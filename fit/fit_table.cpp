@@ -162,18 +162,18 @@ double absorption_by_regression(const Table& t, const SingularParts& exact) {
 // knows it far better than the absorbed paths do (tau 16, albedo 0.999: a tenth of the standard
 // deviation). Where no path is left after the exact parts (tiny tau or tables), nothing tallied
 // can carry the rest: it goes to absorption, which is what a renderer makes of a lost path.
-RestProbabilities rest_probabilities(const Table& t) {
+RestProbabilities rest_probabilities(const Table& t, const SingularParts& exact) {
   const double n = double(t.paths);
   RestProbabilities r{1.0, t.absorbed_weight / n, t.truncated_weight / n};
   if (!singular_parts_exact(t)) return r;
-  const SingularParts exact = singular_parts(t);
   const double rest = 1.0 - exact.uncollided - exact.once;
-  const double rest_paths = n - uncollided_escapes(t) - t.once_weight();
+  const double early = uncollided_escapes(t) + t.once_weight();  // the walk's escapes after 0 or 1 collisions
+  const double rest_paths = n - early;
   if (!(rest_paths > 0)) return {1.0, std::max(rest, 0.0), 0.0};
   const double share = rest / rest_paths;
   r = {share * n, share * t.absorbed_weight, share * t.truncated_weight};
   const double absorbed = absorption_by_regression(t, exact);
-  const double fitted_escapes = t.escaped_weight - uncollided_escapes(t) - t.once_weight();
+  const double fitted_escapes = t.escaped_weight - early;
   const double fitted = rest - absorbed - r.truncated;
   if (absorbed >= 0 && fitted > 0 && fitted_escapes > 0) r = {fitted * n / fitted_escapes, absorbed, r.truncated};
   return r;
@@ -767,14 +767,14 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   m.sigma_s = t.medium.sigma_s, m.sigma_a = t.medium.sigma_a, m.g = t.medium.g;
   m.radius = t.medium.radius, m.tau = t.medium.tau(), m.albedo = t.medium.albedo();
   double paths = double(t.paths);
-  const RestProbabilities rest = rest_probabilities(t);
+  const SingularParts exact = singular_parts(t);
+  const RestProbabilities rest = rest_probabilities(t, exact);
   m.absorbed_fraction = rest.absorbed;
   m.truncated_fraction = rest.truncated;
   m.alpha_edges = t.alpha_edges;
   m.status = fits.status;
   // The rest (all but the once-scattered part) per alpha bin, in paths: the fitted escapes and,
   // in bin 0, the uncollided delta.
-  const SingularParts exact = singular_parts(t);
   const AlphaMarginal marginal = s.smooth_alpha ? smooth_alpha_marginal(t) : AlphaMarginal{};
   std::vector<double> escapes = marginal.bin_escapes.empty() ? seen.total : marginal.bin_escapes;
   for (double& e : escapes) e *= rest.fitted_scale;

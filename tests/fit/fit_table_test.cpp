@@ -330,7 +330,7 @@ TEST(FitTable, OnceScatteredEscapesAreAnExactPartNotFitted) {
     StfModel lm = fit_table(l, parse_model_spec("vmf:2"));
     EXPECT_LT(lm.once_fraction, 2e-6) << c.what;
     EXPECT_NEAR(lm.uncollided_probability() * lm.escape_probability, std::exp(-c.medium.tau()), 1e-12) << c.what;
-    // No path left after the exact parts (tau 1e-6: all escaped uncollided): they still sum to 1.
+    // The probabilities sum to 1 in the limits too.
     EXPECT_NEAR(lm.escape_probability + lm.absorbed_fraction + lm.truncated_fraction, 1.0, 1e-12) << c.what;
     if (c.medium.tau() < 1e-3) {
       EXPECT_GT(lm.uncollided_probability(), 1 - 2e-6) << c.what;
@@ -345,8 +345,8 @@ TEST(FitTable, OnceScatteredEscapesAreAnExactPartNotFitted) {
 // of the same estimates from a 4e6-path table: the regression's coefficients come from the
 // totals they correct, a bias of about -0.9 / n measured over media and sizes, which at 4000
 // paths is up to 0.8 of a table's standard deviation and 8 of the mean's standard error); and
-// the absorbed fraction's variance is below `bound` times that of
-// the plain share, the fitted escapes' in the thin medium below 0.01 times. The bounds are
+// the absorbed fraction's variance is below `bound` times that of the plain share, the fitted
+// escapes' in the thin medium below 0.01 times. The bounds are
 // twice the mean ratios over four other sets of 100 seeds (absorbed: thin 0.015, tau 8 at
 // albedo 0.999 0.049, albedo 0.5 0.40; fitted escapes, thin: 0.0041, where the conditional
 // share alone gives 0.23); the sets spread by less than 1.4x about their mean.
@@ -404,6 +404,20 @@ TEST(FitTable, TablesWithoutTheAbsorbedCollisionsTakeTheConditionalShare) {
   const double p0 = std::exp(-medium.tau()), p1 = medium.albedo() * once_scattered_probability(medium.tau(), medium.g);
   const double rest = double(t.paths) - t.uncollided_half[0] - t.uncollided_half[1] - t.once_weight();
   EXPECT_NEAR(m.absorbed_fraction, (1 - p0 - p1) * t.absorbed_weight / rest, 1e-15);
+  EXPECT_NEAR(m.escape_probability + m.absorbed_fraction + m.truncated_fraction, 1.0, 1e-12);
+}
+
+// When no path is left after the exact parts, nothing tallied can carry the rest 1 - p0 - p1: it
+// is booked as absorbed, and the probabilities still sum to 1 (before, the rest was lost: at
+// tau 1e-3 and albedo 0.5 the sum fell short by 5e-4).
+TEST(FitTable, NoPathLeftAfterTheExactPartsBooksTheRestAsAbsorbed) {
+  const Medium medium{5e-4, 5e-4, 0.3, 1};
+  const Table t = make_table(medium, 100, "healpix:2", 9, 3);
+  ASSERT_EQ(t.uncollided_half[0] + t.uncollided_half[1] + t.once_weight(), double(t.paths));  // this seed's walk
+  const StfModel m = fit_table(t, parse_model_spec("vmf:1"));
+  const double rest = 1 - std::exp(-medium.tau()) - medium.albedo() * once_scattered_probability(medium.tau(), medium.g);
+  EXPECT_GT(rest, 4e-4);
+  EXPECT_NEAR(m.absorbed_fraction, rest, 1e-15);
   EXPECT_NEAR(m.escape_probability + m.absorbed_fraction + m.truncated_fraction, 1.0, 1e-12);
 }
 
