@@ -22,10 +22,11 @@ area, as a perfectly fitted flat model of 45 or 18 bins would be, then compared 
     here by maximum likelihood to the reference's own sub-bin counts, as `stf fit` fits it;
     what remains is the directions' turning with the exit point inside a bin.
 And with fitting: an hvmf:auto model of an independent 45-bin 1e7-path table against the
-90-bin reference (`model_45`: as fitted, with tilts and, where the held-out data chose it,
-blended bins; `model_45_blend` is the blend width, 0 for none), the same model without blending
-(`model_45_tilted`) and without tilts either (`model_45_flat`: the model as stf built it
-before both).
+90-bin reference (`model_45`: as fitted, with tilts, densities that turn with the exit point
+inside each bin and, where the held-out data chose it, blended bins; `model_45_blend` is the
+blend width, 0 for none), the model fitted with `--no-turn` (`model_45_still`: densities that
+stand still inside each bin), that one without blending (`model_45_tilted`) and without tilts
+either (`model_45_flat`: the model as stf built it before all three).
 
 Writes OUT/alpha_bins.json and prints a table. Usage:
   bench/alpha_bins.py [--out DIR] [--paths 1e7] [--reference-paths 3e7] [--grid healpix:16]
@@ -44,7 +45,8 @@ sys.path.insert(0, os.path.join(ROOT, "tools"))
 from stf_runs import Stf  # noqa: E402
 
 MEDIA = [{"sigma_s": 0.95, "sigma_a": 0.05, "g": 0.3}, {"sigma_s": 4.275, "sigma_a": 0.225, "g": 0.3},
-         {"sigma_s": 9.5, "sigma_a": 0.5, "g": 0.3}, {"sigma_s": 4.275, "sigma_a": 0.225, "g": 0.9}]
+         {"sigma_s": 9.5, "sigma_a": 0.5, "g": 0.3}, {"sigma_s": 0.95, "sigma_a": 0.05, "g": 0.9},
+         {"sigma_s": 4.275, "sigma_a": 0.225, "g": 0.9}]
 BINS = 90
 
 
@@ -143,8 +145,8 @@ def tilted(p, singular, area, subs, group):
 
 
 def variant(model, path, tilts):
-    """The model without blended bins and, unless `tilts`, without its tilts (uniform in area
-    inside every bin)."""
+    """The model (fitted with --no-turn) without blended bins and, unless `tilts`, without its
+    tilts (uniform in area inside every bin)."""
     with open(model, "rb") as src, open(path, "wb") as dst:
         dst.write(src.read())
     with h5py.File(path, "r+") as f:
@@ -168,7 +170,8 @@ def main():
     stf = Stf()
     rows = []
     print("| tau | g | raw table (90 bins) | pooled table 45 / 18 | pooled reference 45 / 18 | "
-          "interpolated reference 45 / 18 | tilted reference 45 / 18 | 45-bin model, flat / tilted / as fitted |")
+          "interpolated reference 45 / 18 | tilted reference 45 / 18 | "
+          "45-bin model, flat / tilted / still / as fitted |")
     for i, m in enumerate(MEDIA):
         table, ref = os.path.join(a.out, f"m{i}_table.h5"), os.path.join(a.out, f"m{i}_reference.h5")
         stf.precompute(m, a.paths, 1, table, a.grid, BINS)
@@ -185,21 +188,25 @@ def main():
             row[f"tilted_reference_{bins}"] = tv(tilted(r, dr, area, subs, group), full_r)
         table45, model45 = os.path.join(a.out, f"m{i}_table45.h5"), os.path.join(a.out, f"m{i}_model45.h5")
         stf.precompute(m, a.paths, 3, table45, a.grid, BINS // 2)
+        still45 = os.path.join(a.out, f"m{i}_model45_still.h5")
         stf.fit(table45, ["--model", "hvmf:auto"], model45)
+        stf.fit(table45, ["--model", "hvmf:auto", "--no-turn"], still45)
         scratch = os.path.join(a.out, "eval.json")
         row["model_45"] = stf.evaluate(model45, ref, scratch)["joint_tv_distance"]
+        row["model_45_still"] = stf.evaluate(still45, ref, scratch)["joint_tv_distance"]
         with h5py.File(model45, "r") as f:
             row["model_45_blend"] = int(f.attrs["alpha_blend"])
         for name, tilts in (("flat", False), ("tilted", True)):
             other = os.path.join(a.out, f"m{i}_model45_{name}.h5")
-            variant(model45, other, tilts)
+            variant(still45, other, tilts)
             row[f"model_45_{name}"] = stf.evaluate(other, ref, scratch)["joint_tv_distance"]
         rows.append(row)
         print(f"| {row['tau']:g} | {m['g']:g} | {row['raw_table']:.4f} | {row['pooled_table_45']:.4f} / "
               f"{row['pooled_table_18']:.4f} | {row['pooled_reference_45']:.4f} / {row['pooled_reference_18']:.4f} | "
               f"{row['interpolated_reference_45']:.4f} / {row['interpolated_reference_18']:.4f} | "
               f"{row['tilted_reference_45']:.4f} / {row['tilted_reference_18']:.4f} | "
-              f"{row['model_45_flat']:.4f} / {row['model_45_tilted']:.4f} / {row['model_45']:.4f}"
+              f"{row['model_45_flat']:.4f} / {row['model_45_tilted']:.4f} / {row['model_45_still']:.4f} / "
+              f"{row['model_45']:.4f}"
               f"{' (blend ' + str(row['model_45_blend']) + ')' if row['model_45_blend'] else ''} |")
     with open(os.path.join(a.out, "alpha_bins.json"), "w") as f:
         json.dump({"paths": a.paths, "reference_paths": a.reference_paths, "grid": a.grid, "media": rows}, f, indent=1)

@@ -27,6 +27,7 @@ struct FitOptions {
   int max_blend = StfModel::kMaxBlend;
   bool no_pooling = false;
   bool raw_alpha = false;
+  bool no_turn = false;
   double tolerance = 0;
   std::string heldout;
   bool quiet = false;
@@ -123,6 +124,7 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
   settings.max_blend = o.max_blend;
   settings.pool_neighbours = !o.no_pooling;
   settings.smooth_alpha = !o.raw_alpha;
+  settings.turn = !o.no_turn;
 
   // Every output is checked (and claimed) before any work.
   std::vector<NamedFile> files{{o.table, "the table"}, {o.heldout, "--heldout"}};
@@ -239,6 +241,8 @@ void add_fit_command(CLI::App& app) {
                 "vmf and hvmf auto sizes: fit every alpha bin alone, never with its neighbours' escapes");
   cmd->add_flag("--raw-alpha", o->raw_alpha,
                 "Keep each alpha bin's tallied escapes as the alpha marginal (not smoothed across bins)");
+  cmd->add_flag("--no-turn", o->no_turn,
+                "vmf and hvmf: keep each alpha bin's direction density still across the bin (not turning with the exit point)");
   cmd->add_option("--tolerance", o->tolerance,
                   "Target TV distance: fewest alpha bins, coarsest grid and smallest size that are certified within it");
   cmd->add_option("--heldout", o->heldout, "With --tolerance: an independent table (other seed) that certifies the fit")

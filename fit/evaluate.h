@@ -41,7 +41,9 @@ double area_share(const Table& reference, int b, int f);
 
 // Per-cell probabilities of the fitted density of alpha bin b, integrated over the cells of the
 // grid whose quadratures `levels` holds (build them once for all bins); they sum to 1.
-std::vector<double> smooth_cell_probabilities(const StfModel& model, int bin, const QuadratureLevels& levels);
+// With `turn`, of the bin's density turned by that angle about y (StfModel::alpha_turn).
+std::vector<double> smooth_cell_probabilities(const StfModel& model, int bin, const QuadratureLevels& levels,
+                                              double turn = 0);
 
 // A model's exit distribution in a reference table's layout, bin by reference bin, every part in
 // its exact cells: the smooth part (model bins spread over the reference bins they group by
@@ -55,9 +57,11 @@ class BinnedModel {
   BinnedModel(const StfModel& model, const Table& reference, const DirectionGrid& grid);
   int group() const { return group_; }
   // Reference bin b: its probability and its distribution over cells, from the smooth part's
-  // cell probabilities of model bins (`smooth_cells(j)`: smooth_cell_probabilities of model
-  // bin j, asked for b / group() and, in blended models, its neighbours).
-  using SmoothCells = std::function<const std::vector<double>&(int)>;
+  // cell probabilities of model bins (`smooth_cells(j, turn)`: smooth_cell_probabilities of
+  // model bin j turned by `turn`, asked for b / group() and, in blended models, its neighbours;
+  // the turn is 0 unless the model turns, and then the reference bin is cut into slices of
+  // exit angle, each with its own turns).
+  using SmoothCells = std::function<const std::vector<double>&(int, double)>;
   std::pair<double, std::vector<double>> bin(int b, const SmoothCells& smooth_cells) const;
 
  private:
@@ -73,12 +77,17 @@ class BinnedModel {
 class SmoothCellCache {
  public:
   SmoothCellCache(const StfModel& model, const QuadratureLevels& levels) : model_(model), levels_(levels) {}
-  const std::vector<double>& operator()(int j);
+  const std::vector<double>& operator()(int j, double turn = 0);
 
  private:
+  struct Kept {
+    int bin;
+    double turn;
+    std::vector<double> cells;
+  };
   const StfModel& model_;
   const QuadratureLevels& levels_;
-  std::vector<std::pair<int, std::vector<double>>> kept_;
+  std::vector<Kept> kept_;
 };
 
 // A model's alpha bins may be groups of the reference's (a tolerance fit's): each reference

@@ -30,6 +30,9 @@ struct FitSettings {
   // Whether the alpha marginal of the escapes after two or more collisions is smoothed across
   // the bins (smooth_alpha_marginal) rather than taken from the bins' tallied totals.
   bool smooth_alpha = true;
+  // vmf/hvmf: whether each bin's density turns with the exit angle inside the bin, at the rate
+  // its smoothed heading turns (StfModel::alpha_turn, alpha_turns).
+  bool turn = true;
   // When set (e.g. by Ctrl-C), no further bin is started and fit_table returns early with a
   // model that must be thrown away.
   const std::atomic<bool>* cancel = nullptr;
@@ -72,9 +75,20 @@ inline constexpr double kOutwardCacheBytes = 256e6;
 // the value at its bin of a local quadratic in the bin index over the bins within
 // kHeadingWindow, least squares weighted by their escapes and a triangle in the distance;
 // headings are unwrapped first, as they may cross +-pi. Bins whose window holds fewer than three
-// bins with escapes keep their own.
+// bins with escapes keep their own. `slopes`, when given, receives each local quadratic's slope at
+// its bin, per bin (0 where a bin keeps its own heading).
 inline constexpr int kHeadingWindow = 5;
-std::vector<double> smooth_headings(std::vector<double> headings, const std::vector<double>& escapes);
+std::vector<double> smooth_headings(std::vector<double> headings, const std::vector<double>& escapes,
+                                    std::vector<double>* slopes = nullptr);
+
+// The rate at which each bin's direction density turns about y with the exit angle
+// (StfModel::alpha_turn), in radians per radian of alpha: the slope of its smoothed heading
+// (smooth_headings of the headings of `counts`, each bin's escapes after two or more collisions
+// on the grid whose cell centres are `directions`), clamped to [-kMaxFittedTurn, kMaxFittedTurn]; 0 where the
+// slope is not known.
+inline constexpr double kMaxFittedTurn = 4;
+std::vector<double> alpha_turns(const std::vector<std::vector<double>>& counts, const std::vector<Vec3>& directions,
+                                const std::vector<double>& alpha_edges);
 
 // Candidate sizes tried by vmf:auto and sh:auto.
 std::vector<int> auto_candidates(ModelKind kind);

@@ -10,9 +10,10 @@
 namespace stf::fit {
 
 namespace {
-// Version 2 adds the uncollided fraction, version 3 the once-scattered fraction; versions 1 and
-// 2 still load (as fractions 0).
-constexpr int kFormatVersion = 4;
+// Version 2 adds the uncollided fraction, version 3 the once-scattered fraction, version 4 the
+// alpha tilts and blend, version 5 the alpha turns; older versions still load (as fractions,
+// tilts and turns 0).
+constexpr int kFormatVersion = 5;
 }
 
 using namespace h5;
@@ -66,6 +67,7 @@ void write_model(const StfModel& m, const FitReport& r, const Provenance& p, con
     for (std::size_t b = 0; b < bins; ++b) status[b] = std::int32_t(m.status[b]);
     put_dataset(alpha, "status", {bins}, status.data());
     if (!m.alpha_tilt.empty()) put_dataset(alpha, "tilt", {bins}, m.alpha_tilt.data());
+    if (!m.alpha_turn.empty()) put_dataset(alpha, "turn", {bins}, m.alpha_turn.data());
 
     if (m.kind == ModelKind::kVmf) {
       H5::Group g = file.createGroup("/vmf");
@@ -151,6 +153,7 @@ StfModel read_model(const std::string& path) {
     m.alpha_edges = get_dataset(file, "/alpha/edges", {bins + 1});
     for (std::int32_t s : get_int_dataset(file, "/alpha/status", {bins})) m.status.push_back(BinStatus(s));
     if (version >= 4 && file.nameExists("/alpha/tilt")) m.alpha_tilt = get_dataset(file, "/alpha/tilt", {bins});
+    if (version >= 5 && file.nameExists("/alpha/turn")) m.alpha_turn = get_dataset(file, "/alpha/turn", {bins});
     if (m.kind == ModelKind::kVmf) {
       m.lobes = get_int(file.openGroup("/vmf"), "lobes");
       if (m.lobes < 1 || m.lobes > 64) throw std::runtime_error("vMF lobe count out of range");

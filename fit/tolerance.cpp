@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <stdexcept>
@@ -125,6 +126,32 @@ double coarsening_tv(const Table& t, const Table& other, int f, int levels) {
   return 0.5 * std::sqrt(std::max(0.0, chi2) * weight_sum);
 }
 
+namespace {
+
+// BinnedModel::bin of every reference bin, the smooth cell probabilities computed on the fit's
+// threads: once per model bin (a blended bin also draws on its neighbours'), or, where the
+// model turns, per slice of exit angle, in each model bin's own cache.
+std::vector<std::pair<double, std::vector<double>>> binned_in_parallel(const StfModel& model, const BinnedModel& binned,
+                                                                     const QuadratureLevels& levels,
+                                                                     const FitSettings& settings) {
+  const int bins = model.bins(), f = binned.group();
+  std::vector<std::pair<double, std::vector<double>>> out(std::size_t(bins) * f);
+  if (!model.alpha_turn.empty()) {
+    for_each_bin(bins, settings, [&](int j) {
+      SmoothCellCache cache(model, levels);
+      for (int a = j * f; a < (j + 1) * f; ++a) out[std::size_t(a)] = binned.bin(a, std::ref(cache));
+    });
+    return out;
+  }
+  std::vector<std::vector<double>> cell_probability(bins);
+  for_each_bin(bins, settings, [&](int j) { cell_probability[j] = smooth_cell_probabilities(model, j, levels); });
+  const auto cells_of = [&](int j, double) -> const std::vector<double>& { return cell_probability[std::size_t(j)]; };
+  for (std::size_t a = 0; a < out.size(); ++a) out[a] = binned.bin(int(a), cells_of);
+  return out;
+}
+
+}  // namespace
+
 Certificate certify(const StfModel& model, const Table& fit, const Table& h,
                     const FitSettings& settings) {
   if (fit.alpha_bins != h.alpha_bins || fit.grid != h.grid)
@@ -146,14 +173,11 @@ Certificate certify(const StfModel& model, const Table& fit, const Table& h,
   // Below one fit-table escape a cell's weight says nothing; a floor there keeps single
   // held-out escapes in cells the model calls empty from dominating the variance.
   const double floor = 1 / n_fit;
-  std::vector<std::vector<double>> cell_probability(bins, std::vector<double>(h.cells, 0.0));
-  // Every bin's: a blended bin also draws on its neighbours' densities.
-  for_each_bin(bins, settings, [&](int j) { cell_probability[j] = smooth_cell_probabilities(model, j, levels); });
-  const auto cells_of = [&](int j) -> const std::vector<double>& { return cell_probability[std::size_t(j)]; };
+  const std::vector<std::pair<double, std::vector<double>>> in_h = binned_in_parallel(model, binned, levels, settings);
   double chi2_var = 0, weight_sum = 0;
   for (int j = 0; j < bins; ++j) {
     for (int a = j * f; a < (j + 1) * f; ++a) {
-      const auto [bin_probability, p] = binned.bin(a, cells_of);
+      const auto& [bin_probability, p] = in_h[std::size_t(a)];
       for (std::int64_t c = 0; c < h.cells; ++c) {
         const std::size_t i = std::size_t(a) * h.cells + c;
         const double count = x[i], y = count / n, m = bin_probability * p[c],

@@ -8,6 +8,7 @@
 
 #include "cell_probability.h"
 #include "stf/hemisphere.h"
+#include "stf/tilt.h"
 
 namespace stf::fit {
 
@@ -78,9 +79,10 @@ void deviance_residual(double n, double mu, double& r, double& dr) {
 class PoissonDeviance final : public ceres::CostFunction {
  public:
   PoissonDeviance(const QuadratureLevels& levels, const std::vector<double>& counts, int lobes,
-                  const OutwardFactors* outward, double min_kappa, double max_kappa)
+                  const OutwardFactors* outward, double min_kappa, double max_kappa, const BinTurn* turn = nullptr)
       : levels_(levels), outward_(outward), lobes_(lobes), row_of_cell_(counts.size(), -1),
         min_log_kappa_(std::log(min_kappa)), max_log_kappa_(std::log(max_kappa)) {
+    if (turn && turn->rate != 0) turn_nodes(*turn);
     for (int level = 0; level <= QuadratureLevels::kMaxLevel; ++level)
       for (double a : levels.at(level).weight) max_sub_cell_[level] = std::max(max_sub_cell_[level], a);
     for (double n : counts) widen_above_ += n;
@@ -124,68 +126,14 @@ class PoissonDeviance final : public ceres::CostFunction {
     for (int k = 0; k < K; ++k) {
       const double kappa = std::exp(log_kappa[k]);
       const Vec3 mean = normalize({params[2 + k][0], params[2 + k][1], params[2 + k][2]});
-      const int level = levels_.level_for_kappa(kappa, total_);
-      const CellQuadrature& q = levels_.at(level);
-      const double* factor = outward_ ? (*outward_)[std::size_t(level)].data() : nullptr;
-      const double max_sub_cell = max_sub_cell_[level];
-      // The widening is the quadrature's second-order correction (a sub-cell average of a
-      // lobe is the lobe with the sub-cell's variance added): it changes cell masses by about
-      // kappa a / 24. Where that is below 1/40 of the Poisson noise of N counts
-      // (kappa a / 12 < 0.6 / sqrt(N)) it is left out, and the normalisation is the same at
-      // every point.
-      const bool widen = kappa * max_sub_cell / 12 > widen_above_;
-      const double norm0 = vmf_pdf(kappa, 1.0), dlog0 = dlog_norm(kappa) * kappa;
-      // The widened lobe depends on the sub-cell's solid angle alone: on an equal-area grid
-      // (HEALPix) it is computed once per lobe, not once per point.
-      double widened_for = -1, ke = kappa, norm = norm0, dlog = 0, d_ke = 1;
-      double cut_for = -1, min_cosine = -2;  // the 40 e-fold cut below, for the solid angle cut_for
-      // Points beyond 40 e-folds are skipped below; a cell whose every point must be (its centre
-      // farther from the mean than that angle plus the cell's spread) is skipped whole.
-      const double far = 1 - 40 * (1 + kappa * max_sub_cell / 12) / kappa;
-      const double reach = far > -1 ? std::acos(far) + levels_.spread(level) : kPi;
-      const double cos_reach = reach < kPi ? std::cos(reach) : -2.0;
-      const std::vector<Vec3>& centre = levels_.centres();
-      for (std::size_t c = 0; c < row_of_cell_.size(); ++c) {
-        const int row = row_of_cell_[c];
-        if (dot(mean, centre[c]) < cos_reach) continue;
-        for (int j = 0; j < q.per_cell; ++j) {
-          const std::size_t i = c * q.per_cell + j;
-          const Vec3& x = q.point[i];
-          const double a = q.weight[i], cosine = dot(mean, x), f = factor ? factor[i] : 1.0;
-          if (f <= 0) continue;  // below the tangent plane of every exit point of the bin
-          // Beyond 40 e-folds below the peak a point adds nothing a double can hold relative
-          // to the lobe's mass (and exp would take its slow underflow path).
-          if (a != cut_for) cut_for = a, min_cosine = 1 - 40 * (1 + kappa * a / 12) / kappa;
-          if (cosine < min_cosine) continue;
-          double v, vt, vm;
-          if (widen) {
-            if (a != widened_for) {
-              const double stretch = 1 + kappa * a / 12;
-              widened_for = a, ke = kappa / stretch, d_ke = kappa / (stretch * stretch);
-              widened_norm(ke, norm, dlog);
-            }
-            v = a * norm * std::exp(ke * (cosine - 1));
-            // d v / d log kappa = v (dlog_norm(ke) + cos - 1) (d ke / d kappa) kappa.
-            vt = v * (dlog + cosine - 1) * d_ke;
-            vm = v * ke;  // d v / d mean = vm * x
-          } else {
-            v = a * norm0 * std::exp(kappa * (cosine - 1));
-            vt = v * (dlog0 + kappa * (cosine - 1));
-            vm = v * kappa;
-          }
-          v *= f;  // the outward factor of hemispherical lobes
-          total[k] += v;
-          const std::size_t r = std::size_t(k) * rows + row;
-          if (row >= 0) mass[r] += v;
-          if (!derivatives) continue;
-          vt *= f, vm *= f;
-          total_theta[k] += vt;
-          total_mean[3 * k] += vm * x.x, total_mean[3 * k + 1] += vm * x.y, total_mean[3 * k + 2] += vm * x.z;
-          if (row < 0) continue;
-          d_theta[r] += vt;
-          d_mean[3 * r] += vm * x.x, d_mean[3 * r + 1] += vm * x.y, d_mean[3 * r + 2] += vm * x.z;
-        }
+      const std::size_t at = std::size_t(k) * rows;
+      LobeIntegrals out{&mass[at], derivatives ? &d_theta[at] : nullptr, derivatives ? &d_mean[3 * at] : nullptr,
+                        &total[k], &total_theta[k], &total_mean[3 * k]};
+      if (nodes_.empty()) {
+        integrate_lobe(mean, kappa, outward_ ? PointFactor{outward_} : PointFactor{}, out);
+        continue;
       }
+      integrate_turned_lobe(mean, kappa, rows, out);
     }
 
     // A hemispherical lobe turned wholly below the bin's tangent planes has no mass at all: it
@@ -246,7 +194,195 @@ class PoissonDeviance final : public ceres::CostFunction {
     return true;
   }
 
+  // The probabilities of the rows' cells under `lobes` (the deviance's model, without the
+  // residuals), each lobe integrated as for `escapes` escapes.
+  std::vector<double> probabilities(const std::vector<VmfLobe>& lobes, double escapes) {
+    total_ = escapes;
+    widen_above_ = 0.6 / std::sqrt(std::max(escapes, 1.0));
+    const int rows = int(count_.size());
+    std::vector<double> p(std::size_t(rows), 0.0), mass(p.size());
+    for (const VmfLobe& l : lobes) {
+      if (l.weight <= 0) continue;
+      std::fill(mass.begin(), mass.end(), 0.0);
+      double total = 0, unused[4] = {0, 0, 0, 0};
+      const LobeIntegrals out{mass.data(), nullptr, nullptr, &total, unused, unused + 1};
+      if (nodes_.empty()) integrate_lobe(l.mean, l.kappa, outward_ ? PointFactor{outward_} : PointFactor{}, out);
+      else integrate_turned_lobe(l.mean, l.kappa, rows, out);
+      if (!(total > 1e-150)) continue;
+      for (int r = 0; r < rows; ++r) p[std::size_t(r)] += l.weight * mass[std::size_t(r)] / total;
+    }
+    std::vector<double> cells(row_of_cell_.size(), 0.0);
+    for (std::size_t c = 0; c < cells.size(); ++c)
+      if (row_of_cell_[c] >= 0) cells[c] = p[std::size_t(row_of_cell_[c])];
+    return cells;
+  }
+
+  // Where one lobe's integrals go: its masses on the rows (and, with derivatives, their
+  // derivatives by log kappa and by the mean), and its totals over the sphere.
+  struct LobeIntegrals {
+    double *mass, *d_theta, *d_mean;
+    double *total, *total_theta, *total_mean;
+    // When given, the rows the lobe reaches are listed once each (`marked` flags them).
+    std::vector<int>* touched = nullptr;
+    char* marked = nullptr;
+  };
+
+  // The outward factor at quadrature point i (at x): from a bin's table, from a turned bin's
+  // edges, or 1 for plain lobes.
+  struct PointFactor {
+    const OutwardFactors* table = nullptr;
+    const OutwardBin* turned = nullptr;
+    const double* at_level = nullptr;
+    void for_level(int level) { at_level = table ? (*table)[std::size_t(level)].data() : nullptr; }
+    double operator()(std::size_t i, const Vec3& x) const { return at_level ? at_level[i] : turned ? (*turned)(x) : 1.0; }
+  };
+
+  // Adds one lobe's cell masses, totals and their derivatives to `out`, each point times its
+  // outward factor.
+  void integrate_lobe(const Vec3& mean, double kappa, PointFactor factor, const LobeIntegrals& out) const {
+    const bool derivatives = out.d_theta != nullptr;
+    const int level = levels_.level_for_kappa(kappa, total_);
+    const CellQuadrature& q = levels_.at(level);
+    factor.for_level(level);
+    const double max_sub_cell = max_sub_cell_[level];
+    // The widening is the quadrature's second-order correction (a sub-cell average of a
+    // lobe is the lobe with the sub-cell's variance added): it changes cell masses by about
+    // kappa a / 24. Where that is below 1/40 of the Poisson noise of N counts
+    // (kappa a / 12 < 0.6 / sqrt(N)) it is left out, and the normalisation is the same at
+    // every point.
+    const bool widen = kappa * max_sub_cell / 12 > widen_above_;
+    const double norm0 = vmf_pdf(kappa, 1.0), dlog0 = dlog_norm(kappa) * kappa;
+    // The widened lobe depends on the sub-cell's solid angle alone: on an equal-area grid
+    // (HEALPix) it is computed once per lobe, not once per point.
+    double widened_for = -1, ke = kappa, norm = norm0, dlog = 0, d_ke = 1;
+    double cut_for = -1, min_cosine = -2;  // the 40 e-fold cut below, for the solid angle cut_for
+    // Points beyond 40 e-folds are skipped below; a cell whose every point must be (its centre
+    // farther from the mean than that angle plus the cell's spread) is skipped whole.
+    const double far = 1 - 40 * (1 + kappa * max_sub_cell / 12) / kappa;
+    const double reach = far > -1 ? std::acos(far) + levels_.spread(level) : kPi;
+    const double cos_reach = reach < kPi ? std::cos(reach) : -2.0;
+    const std::vector<Vec3>& centre = levels_.centres();
+    for (std::size_t c = 0; c < row_of_cell_.size(); ++c) {
+      const int row = row_of_cell_[c];
+      if (dot(mean, centre[c]) < cos_reach) continue;
+      for (int j = 0; j < q.per_cell; ++j) {
+        const std::size_t i = c * q.per_cell + j;
+        const Vec3& x = q.point[i];
+        const double a = q.weight[i], cosine = dot(mean, x), f = factor(i, x);
+        if (f <= 0) continue;  // below the tangent plane of every exit point of the bin
+        // Beyond 40 e-folds below the peak a point adds nothing a double can hold relative
+        // to the lobe's mass (and exp would take its slow underflow path).
+        if (a != cut_for) cut_for = a, min_cosine = 1 - 40 * (1 + kappa * a / 12) / kappa;
+        if (cosine < min_cosine) continue;
+        double v, vt, vm;
+        if (widen) {
+          if (a != widened_for) {
+            const double stretch = 1 + kappa * a / 12;
+            widened_for = a, ke = kappa / stretch, d_ke = kappa / (stretch * stretch);
+            widened_norm(ke, norm, dlog);
+          }
+          v = a * norm * std::exp(ke * (cosine - 1));
+          // d v / d log kappa = v (dlog_norm(ke) + cos - 1) (d ke / d kappa) kappa.
+          vt = v * (dlog + cosine - 1) * d_ke;
+          vm = v * ke;  // d v / d mean = vm * x
+        } else {
+          v = a * norm0 * std::exp(kappa * (cosine - 1));
+          vt = v * (dlog0 + kappa * (cosine - 1));
+          vm = v * kappa;
+        }
+        v *= f;  // the outward factor of hemispherical lobes
+        *out.total += v;
+        if (row >= 0) out.mass[row] += v;
+        if (row >= 0 && out.touched && !out.marked[row]) out.marked[row] = 1, out.touched->push_back(row);
+        if (!derivatives) continue;
+        vt *= f, vm *= f;
+        *out.total_theta += vt;
+        out.total_mean[0] += vm * x.x, out.total_mean[1] += vm * x.y, out.total_mean[2] += vm * x.z;
+        if (row < 0) continue;
+        out.d_theta[row] += vt;
+        out.d_mean[3 * row] += vm * x.x, out.d_mean[3 * row + 1] += vm * x.y, out.d_mean[3 * row + 2] += vm * x.z;
+      }
+    }
+  }
+
+  // A turning bin's lobe (VmfFitOptions::turn): the mean of its turned copies, each normalised
+  // over the sphere, so the lobe's masses are normalised already (totals 1, no pull). The copy
+  // at turn t has its mean turned by t and the outward factor of the bin's edges moved by t, and
+  // d mass / d mean = R(t)^T d mass / d (R(t) mean). A lobe broad against the turn across the
+  // bin (one copy) is integrated as it stands. Only the rows a copy reaches are folded in.
+  void integrate_turned_lobe(const Vec3& mean, double kappa, int rows, const LobeIntegrals& out) const {
+    const int copies = nodes_needed(kappa);
+    if (copies == 1) {
+      integrate_lobe(mean, kappa, outward_ ? PointFactor{outward_} : PointFactor{}, out);
+      return;
+    }
+    const bool derivatives = out.d_theta != nullptr;
+    const std::size_t n = std::size_t(rows);
+    std::vector<double> m(n, 0.0), dt(derivatives ? n : 0, 0.0), dm(derivatives ? 3 * n : 0, 0.0);
+    std::vector<char> marked(n, 0);
+    std::vector<int> touched;
+    for (const Node& node : nodes_[std::size_t(copies - 1)]) {
+      double t = 0, tt = 0, tm[3] = {0, 0, 0};
+      PointFactor factor;
+      if (outward_) factor.turned = &node.outward;
+      touched.clear();
+      integrate_lobe(turn_about_y(mean, node.angle), kappa, factor,
+                     {m.data(), derivatives ? dt.data() : nullptr, derivatives ? dm.data() : nullptr, &t, &tt, tm,
+                      &touched, marked.data()});
+      const double share = t > 1e-150 ? node.weight / t : 0;  // 0: wholly below the moved tangent planes
+      const Vec3 pull = share > 0 ? turn_about_y({tm[0] / t, tm[1] / t, tm[2] / t}, -node.angle) : Vec3{};
+      for (int r : touched) {
+        const std::size_t i = std::size_t(r);
+        double* d = derivatives ? &dm[3 * i] : nullptr;
+        if (share > 0) {
+          out.mass[r] += share * m[i];
+          if (derivatives) {
+            out.d_theta[r] += share * (dt[i] - m[i] * tt / t);
+            const Vec3 back = turn_about_y({d[0], d[1], d[2]}, -node.angle);
+            out.d_mean[3 * r] += share * (back.x - m[i] * pull.x);
+            out.d_mean[3 * r + 1] += share * (back.y - m[i] * pull.y);
+            out.d_mean[3 * r + 2] += share * (back.z - m[i] * pull.z);
+          }
+        }
+        if (derivatives) dt[i] = d[0] = d[1] = d[2] = 0;
+        m[i] = 0, marked[i] = 0;
+      }
+    }
+    *out.total = 1, *out.total_theta = 0, out.total_mean[0] = out.total_mean[1] = out.total_mean[2] = 0;
+  }
+
+  // Copies of a lobe at n turns across the bin: the midpoints of n equal shares of the exit
+  // points (the bin's tilted density in area), turned by the rate times their angle from the
+  // bin's middle, for n = 1 .. kMaxTurnNodes.
+  struct Node {
+    double angle, weight;
+    OutwardBin outward;
+  };
+  void turn_nodes(const BinTurn& turn) {
+    const double c0 = std::cos(turn.a0), c1 = std::cos(turn.a1), middle = 0.5 * (turn.a0 + turn.a1);
+    for (int n = 1; n <= kMaxTurnNodes; ++n) {
+      std::vector<Node> nodes;
+      for (int j = 0; j < n; ++j) {
+        const double u = tilt_quantile(turn.tilt, (j + 0.5) / n);
+        const double angle = turn.rate * (std::acos(std::clamp(c0 + u * (c1 - c0), -1.0, 1.0)) - middle);
+        nodes.push_back({angle, 1.0 / n, OutwardBin(turn.a0 + angle, turn.a1 + angle)});
+      }
+      nodes_.push_back(std::move(nodes));
+    }
+    span_ = std::abs(turn.rate) * (turn.a1 - turn.a0);
+  }
+  // Copies enough that neighbours are a lobe width (1 / sqrt(kappa)) apart or closer.
+  int nodes_needed(double kappa) const {
+    return std::clamp(int(std::ceil(kTurnNodesPerWidth * span_ * std::sqrt(kappa))), 1, kMaxTurnNodes);
+  }
+  static constexpr int kMaxTurnNodes = 16;
+  // Copies one lobe width apart: half as far apart took the fit of tau 1 g 0.9 (1e5 paths) from
+  // 5.5-6.7 s to 7.5-10.3 s, and its models moved within 1e-4 either way (docs/fit.md).
+  static constexpr double kTurnNodesPerWidth = 1;
+
  private:
+  std::vector<std::vector<Node>> nodes_;  // [n - 1]: n copies; empty: the bin does not turn
+  double span_ = 0;                       // the turn across the bin
   const QuadratureLevels& levels_;
   const OutwardFactors* outward_;
   int lobes_;
@@ -486,8 +622,9 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
   ceres::Problem problem(problem_options);
   std::vector<double*> blocks = {logits.data(), log_kappa.data()};
   for (int k = 0; k < K; ++k) blocks.push_back(&means[3 * k]);
-  problem.AddResidualBlock(new PoissonDeviance(levels, counts, K, options.outward, options.min_kappa, options.max_kappa),
-                           nullptr, blocks);
+  problem.AddResidualBlock(
+      new PoissonDeviance(levels, counts, K, options.outward, options.min_kappa, options.max_kappa, options.turn),
+      nullptr, blocks);
   // Slopes of the logits, the log kappas and the turns (sloped pools), from none.
   std::vector<double> slopes(options.sloped && !options.pooled.empty() ? 3 * std::size_t(K) : 0, 0.0);
   std::vector<double*> pooled_blocks = blocks;
@@ -495,7 +632,7 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
   for (const PooledBin& n : options.pooled)
     problem.AddResidualBlock(
         new TurnedDeviance(std::make_unique<PoissonDeviance>(levels, *n.counts, K, n.outward, options.min_kappa,
-                                                             options.max_kappa),
+                                                             options.max_kappa, n.turn),
                            K, n.angle, n.weight, !slopes.empty(), n.offset),
         nullptr, pooled_blocks);
   ceres::SphereManifold<3> sphere;
@@ -579,6 +716,13 @@ std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, co
     for (std::size_t c = 0; c < p.size(); ++c) p[c] += l.weight * one[c];
   }
   return p;
+}
+
+std::vector<double> vmf_bin_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
+                                          double counts, const OutwardFactors* outward, const BinTurn& turn) {
+  const std::vector<double> every_cell(levels.centres().size(), 1.0);
+  PoissonDeviance bin(levels, every_cell, int(lobes.size()), outward, 1e-6, 1e8, &turn);
+  return bin.probabilities(lobes, counts);
 }
 
 std::vector<VmfLobe> grow_lobes(std::vector<VmfLobe> lobes, int K) {

@@ -17,6 +17,13 @@ class QuadratureLevels;
 // factor that makes vMF lobes hemispherical. Empty vectors: plain lobes.
 using OutwardFactors = std::array<std::vector<double>, 3>;
 
+// An alpha bin whose direction density turns about y with the exit angle (StfModel::alpha_turn):
+// its counts are the density averaged over the bin's exit points (its edges a0, a1 and tilt),
+// each turned by rate * (alpha - (a0 + a1) / 2).
+struct BinTurn {
+  double rate = 0, a0 = 0, a1 = 0, tilt = 0;
+};
+
 // A neighbouring alpha bin's escapes fitted together with a bin's own: they are expected to
 // follow the bin's lobes turned by `angle` about y (the axis the exit point turns about as
 // alpha grows), times the neighbour's own outward factor, and their log-likelihood counts
@@ -26,10 +33,12 @@ struct PooledBin {
   const OutwardFactors* outward = nullptr;  // null: plain lobes
   double angle = 0, weight = 0;
   int offset = 0;  // its bin minus the fitted one: how far sloped lobes are continued
+  const BinTurn* turn = nullptr;  // how the neighbour's own density turns across it, or null
 };
 
 struct VmfFitOptions {
   const OutwardFactors* outward = nullptr;  // hemispherical lobes of this bin, or null
+  const BinTurn* turn = nullptr;            // the bin's density turns across it, or null
   std::vector<PooledBin> pooled;            // neighbours fitted jointly (none: the bin alone)
   // Whether the neighbours see the lobes continued linearly in alpha (each lobe's logit, log
   // kappa and turn sloped by parameters of their own, fitted with the lobes) rather than as
@@ -88,6 +97,11 @@ class QuadratureLevels {
 // it against `counts` escapes; with `outward`, of hemispherical lobes.
 std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
                                            double counts = 1e8, const OutwardFactors* outward = nullptr);
+
+// The same for a bin whose density turns across it: the turned density averaged over the bin's
+// exit points, as the fit sees a turning bin's counts (VmfFitOptions::turn).
+std::vector<double> vmf_bin_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
+                                          double counts, const OutwardFactors* outward, const BinTurn& turn);
 
 // The outward factors of the alpha bin [a0, a1] at the points of every level.
 OutwardFactors outward_factors(const QuadratureLevels& levels, double a0, double a1);

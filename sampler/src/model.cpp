@@ -170,6 +170,9 @@ std::string model_error(const StfModel& m) {
   if (m.alpha_blend < 0 || m.alpha_blend > StfModel::kMaxBlend) return "alpha blend out of range [0, 3]";
   for (double t : m.alpha_tilt)
     if (!finite_in(t, -kMaxTilt, kMaxTilt)) return "alpha tilt out of range [-40, 40]";
+  if (!m.alpha_turn.empty() && int(m.alpha_turn.size()) != bins) return "alpha turns of the wrong count";
+  for (double r : m.alpha_turn)
+    if (!finite_in(r, -StfModel::kMaxTurn, StfModel::kMaxTurn)) return "alpha turn out of range [-8, 8]";
   if (!finite_in(m.uncollided_fraction, 0, m.alpha_probability[0] * (1 + 1e-9)))
     return "uncollided fraction must be in [0, alpha probability of bin 0]";
   if (m.kind == ModelKind::kVmf) {

@@ -23,6 +23,10 @@ std::uint64_t fnv1a(const std::uint8_t* p, std::size_t n) {
 
 std::size_t pad4(std::size_t n) { return (n + 3) & ~std::size_t(3); }
 
+// Record flags: bit 0 hemispherical lobes, bits 1-2 the alpha blend (version 4 on), bit 3 a
+// turn per bin follows the tilts (version 5 on).
+constexpr std::uint32_t kTurnsFlag = 8;
+
 // Float32 values per lobe: weight, kappa and the mean as (x, y, z) up to version 2, as its polar
 // and azimuthal angles since version 3 (a fifth smaller; float32 angles place a mean to ~1e-7
 // rad, below the width of any lobe a table resolves).
@@ -89,7 +93,8 @@ bool little_endian() {
 std::int64_t record_bytes(const StfModel& m, std::size_t name_bytes) {
   const int kind = m.kind == ModelKind::kVmf ? 0 : 1;
   const std::uint32_t size = kind == 0 ? std::uint32_t(m.lobes) : std::uint32_t(m.band_limit);
-  std::size_t n = 4 + 4 + pad4(name_bytes) + 6 * 4 + 8 * 8 + 2 * 4 * std::size_t(m.bins()) + pad4(std::size_t(m.bins()));
+  const std::size_t per_bin = m.alpha_turn.empty() ? 8 : 12;  // probability, tilt, and turn when it turns
+  std::size_t n = 4 + 4 + pad4(name_bytes) + 6 * 4 + 8 * 8 + per_bin * std::size_t(m.bins()) + pad4(std::size_t(m.bins()));
   return std::int64_t(n + 4 * parameter_count(kind, std::uint32_t(m.bins()), size, m.alpha_degree));
 }
 
@@ -106,7 +111,8 @@ std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries) {
     payload.align4();
     for (std::uint32_t v : {std::uint32_t(kind), bins, size, std::uint32_t(m.sh_nz)}) payload.put(v);
     payload.put(std::int32_t(m.alpha_degree));
-    payload.put(std::uint32_t((m.hemispherical ? 1 : 0) | (std::uint32_t(m.alpha_blend) << 1)));  // flags
+    payload.put(std::uint32_t((m.hemispherical ? 1 : 0) | (std::uint32_t(m.alpha_blend) << 1) |
+                              (m.alpha_turn.empty() ? 0 : kTurnsFlag)));  // flags
     for (double v : {m.tau, m.albedo, m.g, m.escape_probability, m.absorbed_fraction, m.truncated_fraction,
                      m.uncollided_fraction, m.once_fraction})
       payload.put(v);
@@ -114,6 +120,7 @@ std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries) {
     for (BinStatus s : m.status) payload.put(std::uint8_t(s));
     payload.align4();
     for (int b = 0; b < m.bins(); ++b) payload.put(float(m.tilt(b)));
+    for (double r : m.alpha_turn) payload.put(float(r));
     if (kind == 0) {
       for (const VmfLobe& l : m.vmf)
         for (double v : {l.weight, l.kappa, std::atan2(std::hypot(l.mean.x, l.mean.y), l.mean.z), std::atan2(l.mean.y, l.mean.x)})
@@ -160,17 +167,21 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
   if (kind == 1 && (size > 64 || nz < 1 || nz > 256 || degree < -1 || degree > 64 ||
                     std::size_t(bins) * nz * nz * 2 > (std::size_t(1) << 27)))
     return fail(error, "SH band limit, table size or alpha degree out of range");
-  const std::size_t per_bin = version >= 4 ? 8 : 4;  // alpha probability, and tilt from version 4
+  // Alpha probability, tilt from version 4, turn from version 5 where the flags say it turns.
+  const bool turns = version >= 5 && (flags & kTurnsFlag);
+  const std::size_t per_bin = turns ? 12 : version >= 4 ? 8 : 4;
   if (std::int64_t(record) != std::int64_t(4 + 4 + pad4(name_bytes) + 6 * 4 + doubles * 8 + per_bin * std::size_t(bins) + pad4(bins) +
                                             4 * parameter_count(int(kind), bins, size, kind == 1 ? degree : -1, version)))
     return fail(error, "model record size does not match its contents");
 
   StfModel& m = e.model;
   m.kind = kind == 0 ? ModelKind::kVmf : ModelKind::kSh;
-  if ((version == 3 && flags > 1) || (version >= 4 && (flags >> 1) > std::uint32_t(StfModel::kMaxBlend)))
+  const std::uint32_t blend = (flags >> 1) & (version >= 5 ? 3u : ~0u);
+  if ((version == 3 && flags > 1) || (version == 4 && blend > std::uint32_t(StfModel::kMaxBlend)) ||
+      (version >= 5 && flags > (kTurnsFlag | 7u)))
     return fail(error, "unknown model flags");
   m.hemispherical = version >= 3 && kind == 0 && (flags & 1);
-  m.alpha_blend = version >= 4 ? int(flags >> 1) : 0;
+  m.alpha_blend = version >= 4 ? int(blend) : 0;
   m.tau = r.get<double>(), m.albedo = r.get<double>(), m.g = r.get<double>();
   m.escape_probability = r.get<double>(), m.absorbed_fraction = r.get<double>(), m.truncated_fraction = r.get<double>();
   if (version >= 2) m.uncollided_fraction = r.get<double>();
@@ -203,6 +214,11 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
     const double t = r.get<float>();
     if (!(std::abs(t) <= kMaxTilt)) return fail(error, "alpha tilt out of range");
     m.alpha_tilt.push_back(t);
+  }
+  for (std::uint32_t b = 0; b < bins && turns; ++b) {
+    const double turn = r.get<float>();
+    if (!(std::abs(turn) <= StfModel::kMaxTurn)) return fail(error, "alpha turn out of range");
+    m.alpha_turn.push_back(turn);
   }
   if (kind == 0) {
     m.lobes = int(size);

@@ -155,6 +155,7 @@ ExitSample ShellSampler::draw(double u0, double u1, double u2, double u3, int& b
   while (k + 1 < n && u2 >= below + weights[k]) below += weights[k++];
   const double rest = n > 1 ? std::clamp((u2 - below) / weights[k], 0.0, std::nextafter(1.0, 0.0)) : u2;
   local = sample_direction(blend_bins[k], rest, u3);
+  if (!model_.alpha_turn.empty()) local = turn_about_y(local, model_.turn_angle(blend_bins[k], std::atan2(sin_alpha, cos_alpha)));
   s.point = {sin_alpha * cb, sin_alpha * sb, cos_alpha};
   s.direction = rotate_z(local, cb, sb);
   return s;
@@ -184,7 +185,14 @@ double ShellSampler::smooth_pdf(int bin, double cos_alpha, const Vec3& local) co
   double weights[2 * StfModel::kMaxBlend + 1];
   const int n = model_.blend_weights(bin, u, blend_bins, weights);
   double direction = 0;
-  for (int k = 0; k < n; ++k) direction += weights[k] * direction_pdf(blend_bins[k], local);
+  if (model_.alpha_turn.empty()) {
+    for (int k = 0; k < n; ++k) direction += weights[k] * direction_pdf(blend_bins[k], local);
+    return point * direction;
+  }
+  // Each blended bin's density turned to this exit angle (StfModel::alpha_turn).
+  const double alpha = std::atan2(std::sqrt(std::max(0.0, 1 - cos_alpha * cos_alpha)), cos_alpha);
+  for (int k = 0; k < n; ++k)
+    direction += weights[k] * direction_pdf(blend_bins[k], turn_about_y(local, -model_.turn_angle(blend_bins[k], alpha)));
   return point * direction;
 }
 

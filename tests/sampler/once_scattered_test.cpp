@@ -113,15 +113,7 @@ TEST(OnceScattered, SamplerMatchesTheExactBinningChiSquare) {
 // once-scattered part, against the model binned like a table, at the model's alpha bins and at
 // 3x finer ones (as a tolerance fit's model is evaluated: the smooth part spread by its tilted
 // density in area and blended with its neighbours, the delta in the first fine bin alone).
-TEST(OnceScattered, FullSamplerWithEveryPartMatchesTheBinnedModelChiSquare) {
-  const std::uint64_t seed = test::test_seed(82);
-  SCOPED_TRACE(test::seed_trace(seed));
-  StfModel model = test::make_vmf_model();
-  model.tau = 1.3, model.g = 0.4;
-  model.uncollided_fraction = 0.4 * model.alpha_probability[0];
-  model.once_fraction = 0.3;
-  model.alpha_tilt = {-2.5, 1.0, 0.3, 0.0, -0.7, 4.0};  // spread over 3x finer bins as the sampler spreads them
-  model.alpha_blend = 2;                                // with the directions of the neighbours blended in
+void expect_sampler_matches_binned_model(const StfModel& model, std::uint64_t seed) {
   ASSERT_EQ(model_error(model), "");
   ShellSampler s(model);
   for (int f : {1, 3}) {
@@ -156,6 +148,36 @@ TEST(OnceScattered, FullSamplerWithEveryPartMatchesTheBinnedModelChiSquare) {
     EXPECT_GT(r.p_value, test::kChi2Alpha) << "alpha bins " << f << "x the model's: " << r.describe();
     EXPECT_NEAR(counts[kOnceScattered], n * 0.3, 5 * std::sqrt(n * 0.3 * 0.7));
   }
+}
+
+StfModel every_part_model() {
+  StfModel model = test::make_vmf_model();
+  model.tau = 1.3, model.g = 0.4;
+  model.uncollided_fraction = 0.4 * model.alpha_probability[0];
+  model.once_fraction = 0.3;
+  model.alpha_tilt = {-2.5, 1.0, 0.3, 0.0, -0.7, 4.0};  // spread over 3x finer bins as the sampler spreads them
+  model.alpha_blend = 2;                                // with the directions of the neighbours blended in
+  return model;
+}
+
+TEST(OnceScattered, FullSamplerWithEveryPartMatchesTheBinnedModelChiSquare) {
+  const std::uint64_t seed = test::test_seed(82);
+  SCOPED_TRACE(test::seed_trace(seed));
+  expect_sampler_matches_binned_model(every_part_model(), seed);
+}
+
+// The same with hemispherical lobes that turn with the exit angle (StfModel::alpha_turn), by up to
+// 90 degrees across a bin: the sampler turns each draw, the binned model turns the lobes' means
+// and the bins' tangent planes slice by slice of exit angle, and at 3x finer alpha bins the
+// turn decides which cells each third of a bin fills.
+TEST(OnceScattered, TurningDensitiesMatchTheBinnedModelChiSquare) {
+  const std::uint64_t seed = test::test_seed(83);
+  SCOPED_TRACE(test::seed_trace(seed));
+  StfModel model = every_part_model();
+  model.hemispherical = true;
+  model.rebuild_lobe_norms();
+  model.alpha_turn = {1.5, -2.0, 3.0, 0.7, 1.0, -0.5};
+  expect_sampler_matches_binned_model(model, seed);
 }
 
 }  // namespace

@@ -89,6 +89,7 @@ TEST(Pack, RoundTripKeepsModelsToFloatPrecision) {
   in[0].model.alpha_blend = 3;
   in[0].model.alpha_tilt = {-2.5, 1.0, 0.3, 0.0, -0.7, 4.0};
   in[0].model.uncollided_fraction = 0.1 * in[0].model.alpha_probability[0];
+  in[2].model.alpha_turn = {1.5, -2.0, 3.0, 0.7, 1.0, -0.5};
   std::vector<PackEntry> out = round_trip(in);
   ASSERT_EQ(out.size(), 3u);
   EXPECT_EQ(out[0].name, "milk");
@@ -98,6 +99,10 @@ TEST(Pack, RoundTripKeepsModelsToFloatPrecision) {
   EXPECT_EQ(out[1].model.alpha_blend, 0);
   ASSERT_EQ(out[0].model.alpha_tilt.size(), 6u);
   for (int b = 0; b < 6; ++b) EXPECT_NEAR(out[0].model.alpha_tilt[b], in[0].model.alpha_tilt[b], 1e-6);
+  EXPECT_TRUE(out[0].model.alpha_turn.empty());  // a model that does not turn packs no turns
+  ASSERT_EQ(out[2].model.alpha_turn.size(), 6u);
+  for (int b = 0; b < 6; ++b) EXPECT_NEAR(out[2].model.alpha_turn[b], in[2].model.alpha_turn[b], 1e-6);
+  EXPECT_EQ(in[2].model.packed_bytes(), test::make_vmf_model().packed_bytes() + 6 * 4);
   // One header; each record as packed_bytes() reports it, plus its name padded to 4 bytes.
   EXPECT_EQ(write_pack(in).size(),
             std::size_t(in[0].model.packed_bytes() + in[1].model.packed_bytes() + in[2].model.packed_bytes() - 64 + 4 + 4));
@@ -148,6 +153,25 @@ TEST(Pack, AcrossAlphaSeriesIsPackedAndRebuilt) {
   EXPECT_EQ(r.alpha_degree, 1);
   for (std::size_t i = 0; i < m.sh.size(); ++i) EXPECT_NEAR(r.sh[i], m.sh[i], 1e-6);
   EXPECT_EQ(write_pack({{"", m}}).size(), std::size_t(m.packed_bytes()));
+}
+
+// Turns (StfModel::alpha_turn) are one per bin and within [-8, 8] radians per radian: checked
+// when a model is built and when a pack is read.
+TEST(Pack, TurnsOfTheWrongCountOrOutOfRangeAreRefused) {
+  StfModel m = test::make_vmf_model();
+  m.alpha_turn = {1, 1, 1};
+  EXPECT_EQ(model_error(m), "alpha turns of the wrong count");
+  m.alpha_turn = {1, 1, 1, 1, 1, std::nan("")};
+  EXPECT_EQ(model_error(m), "alpha turn out of range [-8, 8]");
+  m.alpha_turn = {1, 1, 1, 1, -9, 1};
+  EXPECT_EQ(model_error(m), "alpha turn out of range [-8, 8]");
+  const std::vector<std::uint8_t> bytes = write_pack({{"", m}});
+  std::vector<PackEntry> out;
+  std::string error;
+  EXPECT_FALSE(read_pack(bytes.data(), bytes.size(), out, error));
+  EXPECT_EQ(error, "model 0: alpha turn out of range");
+  m.alpha_turn[4] = 8;
+  EXPECT_EQ(model_error(m), "");
 }
 
 TEST(Pack, RejectsForeignTruncatedAndCorruptedFiles) {

@@ -100,6 +100,14 @@ StfModel blended(StfModel m, int width = 1) {
   return m;
 }
 
+// Densities that turn about y with the exit angle inside their bins (StfModel::alpha_turn), some
+// against the exit point, one by 90 degrees across its bin.
+StfModel turned(StfModel m) {
+  const double rates[] = {1.5, -2.0, 3.0, 0.7, 1.0, -0.5};
+  for (int b = 0; b < m.bins(); ++b) m.alpha_turn.push_back(rates[b % 6]);
+  return m;
+}
+
 // The same lobes made hemispherical: each times its bin's outward cosine, renormalised.
 StfModel hemispherical(StfModel m) {
   m.hemispherical = true;
@@ -200,7 +208,9 @@ TEST(Sampler, FullSampleMatchesPdfChiSquare) {
 TEST(Sampler, PdfOfASampleIsTheReturnedPdf) {
   for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model()),
                                hemispherical(with_uncollided(test::make_vmf_model())), tilted(test::make_vmf_model()),
-                               blended(tilted(test::make_vmf_model())), blended(tilted(test::make_vmf_model()), 3)}) {
+                               blended(tilted(test::make_vmf_model())), blended(tilted(test::make_vmf_model()), 3),
+                               turned(hemispherical(test::make_vmf_model())), blended(turned(tilted(test::make_vmf_model())), 2),
+                               turned(test::make_sh_model())}) {
     ShellSampler s(model);
     Uniforms u{54};
     for (int i = 0; i < 20000; ++i) {
@@ -251,7 +261,8 @@ TEST(Sampler, PdfIntegratesToOne) {
 // With tilted bins the pdf varies with the exit point inside a band; the measure does not.
 TEST(Sampler, InversePdfRecoversTheMeasureOfRegions) {
   for (const StfModel& model : {test::make_vmf_model(), tilted(test::make_vmf_model()), blended(tilted(test::make_vmf_model())),
-                                blended(tilted(test::make_vmf_model()), 2)}) {
+                                blended(tilted(test::make_vmf_model()), 2), turned(tilted(test::make_vmf_model())),
+                                blended(turned(tilted(test::make_vmf_model())), 2)}) {
     ShellSampler s(model);
     const StfModel& m = s.model();
     const double measure = 2 * kPi * (std::cos(m.alpha_edges[1]) - std::cos(m.alpha_edges[3])) * 2 * kPi;
@@ -268,7 +279,7 @@ TEST(Sampler, InversePdfRecoversTheMeasureOfRegions) {
     }
     double mean = sum / n, error = std::sqrt((sum2 / n - mean * mean) / n);
     EXPECT_NEAR(mean, measure, 6 * error) << "standard error " << error << (m.alpha_tilt.empty() ? "" : ", tilted")
-                                          << ", blend " << m.alpha_blend;
+                                          << ", blend " << m.alpha_blend << (m.alpha_turn.empty() ? "" : ", turned");
   }
 }
 

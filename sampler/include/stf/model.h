@@ -53,6 +53,14 @@ struct StfModel {
   // smoothed over more bins. blend_weights() gives the bins and weights.
   int alpha_blend = 0;
   static constexpr int kMaxBlend = 3;
+  // Turning bins (format version 5): at exit angle alpha the direction density of bin j is the
+  // bin's own turned about y by alpha_turn[j] * (alpha - centre of bin j), where the centre is
+  // the middle of its alpha edges (turn_angle()): the forward peak turns with the exit point
+  // (by 1.2-1.7 degrees per degree of alpha in forward-scattering media), and a density that
+  // stands still across a bin blurs the turn into the bin's edges. Blended bins each turn by
+  // their own rate. Empty: no bin turns (format versions before 5).
+  std::vector<double> alpha_turn;
+  static constexpr double kMaxTurn = 8;
   std::vector<BinStatus> status;          // [bins]
 
   // kVmf: `lobes` lobes per bin, [bins * lobes].
@@ -79,6 +87,12 @@ struct StfModel {
 
   int bins() const { return int(alpha_probability.size()); }
   double tilt(int b) const { return alpha_tilt.empty() ? 0.0 : alpha_tilt[std::size_t(b)]; }
+  // The angle about y by which bin b's direction density is turned at exit angle alpha.
+  double turn_angle(int b, double alpha) const {
+    if (alpha_turn.empty()) return 0;
+    const std::size_t i = std::size_t(b);
+    return alpha_turn[i] * (alpha - 0.5 * (alpha_edges[i] + alpha_edges[i + 1]));
+  }
   // The bins whose direction densities are blended at area fraction u of bin b, and their
   // weights (summing to 1); returns how many (at most 2 kMaxBlend + 1).
   int blend_weights(int b, double u, int* blend_bins, double* weights) const;

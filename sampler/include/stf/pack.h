@@ -28,8 +28,10 @@
 namespace stf {
 
 // Version 2 adds each model's uncollided fraction, version 3 its once-scattered fraction (after
-// the uncollided one), version 4 the alpha tilts; older packs still load (fractions and tilts 0).
-inline constexpr std::uint32_t kPackVersion = 4;
+// the uncollided one), version 4 the alpha tilts and blend, version 5 the alpha turns (a flag and
+// one float per bin, only in models that turn); older packs still load (fractions, tilts and
+// turns 0).
+inline constexpr std::uint32_t kPackVersion = 5;
 
 struct PackEntry {
   std::string name;  // e.g. the medium's name in a scene; may be empty

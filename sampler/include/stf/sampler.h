@@ -7,7 +7,8 @@
 // alpha = angle(y, +z) in [a0, a1), beta = azimuth of y, u = (cos a0 - cos alpha) / (cos a0 -
 // cos a1) and t the bin's tilted density (stf/tilt.h; 1 in models without tilts): beta is
 // uniform, and the direction density is the fitted one in the frame where y lies in the x-z
-// plane (in blended models mixed with neighbours', StfModel::alpha_blend). The singular parts carry their discrete probabilities (ExitSample::component). All
+// plane (in blended models mixed with neighbours', StfModel::alpha_blend; in turning models each
+// turned about y to the exit angle, StfModel::alpha_turn). The singular parts carry their discrete probabilities (ExitSample::component). All
 // methods are const, thread-safe, allocation-free.
 #pragma once
 
