@@ -81,6 +81,14 @@ double sum(const std::vector<double>& v) {
   return s;
 }
 
+// The angle about y from the exit point's z axis to where escapes with these cell counts head
+// on average (their mean direction's azimuth in the x-z plane of the exit point's frame).
+double heading(const Table& t, const std::vector<double>& counts) {
+  double x = 0, z = 0;
+  for (std::int64_t c = 0; c < t.cells; ++c) x += counts[c] * t.direction[c][0], z += counts[c] * t.direction[c][2];
+  return std::atan2(x, z);
+}
+
 // The escapes a fit sees per alpha bin (bin_counts), folded over the mirror symmetry of the
 // exit distribution when `image` (mirror_cells) is not empty. Folding bin by bin as the counts
 // are read keeps no second copy of the table; it keeps each bin's total.
@@ -102,11 +110,11 @@ struct Escapes {
   }
   const BinTurn* turn_of(int half, int b) const { return half < 0 && !turns.empty() ? &turns[std::size_t(b)] : nullptr; }
   // The rates from the headings of the whole table's escapes (alpha_turns), the exit points
-  // spread by `tilts` (none: uniform in area); `levels` holds the grid's cell centres.
-  void set_turns(const std::vector<double>& tilts, const QuadratureLevels& levels) {
-    std::vector<std::vector<double>> c;
-    for (int b = 0; b < table.alpha_bins; ++b) c.push_back(counts(-1, b));
-    const std::vector<double> rate = alpha_turns(c, levels.centres(), table.alpha_edges);
+  // spread by `tilts` (none: uniform in area).
+  void set_turns(const std::vector<double>& tilts) {
+    std::vector<double> headings;
+    for (int b = 0; b < table.alpha_bins; ++b) headings.push_back(heading(table, counts(-1, b)));
+    const std::vector<double> rate = alpha_turns(headings, total, table.alpha_edges);
     for (int b = 0; b < table.alpha_bins; ++b)
       turns.push_back({rate[std::size_t(b)], table.alpha_edges[std::size_t(b)], table.alpha_edges[std::size_t(b) + 1],
                        tilts.empty() ? 0.0 : tilts[std::size_t(b)]});
@@ -225,14 +233,6 @@ struct BinFits {
   std::vector<std::vector<double>> sh;      // sh: raw projections, not yet smoothed
 };
 
-// The angle about y from the exit point's z axis to where escapes with these cell counts head
-// on average (their mean direction's azimuth in the x-z plane of the exit point's frame).
-double heading(const Table& t, const std::vector<double>& counts) {
-  double x = 0, z = 0;
-  for (std::int64_t c = 0; c < t.cells; ++c) x += counts[c] * t.direction[c][0], z += counts[c] * t.direction[c][2];
-  return std::atan2(x, z);
-}
-
 // Whether bin b is sparse enough for its neighbours' escapes to pay (FitSettings::
 // pool_neighbours): pooling trades noise for bias, and measured on 1e7-path tables it moved no
 // model while its fits took four times as long.
@@ -281,17 +281,11 @@ std::vector<double> smooth_headings(std::vector<double> headings, const std::vec
   return smooth;
 }
 
-std::vector<double> alpha_turns(const std::vector<std::vector<double>>& counts, const std::vector<Vec3>& directions,
+std::vector<double> alpha_turns(const std::vector<double>& headings, const std::vector<double>& escapes,
                                 const std::vector<double>& alpha_edges) {
-  std::vector<double> headings, escapes, slopes;
-  for (const std::vector<double>& c : counts) {
-    double x = 0, z = 0;
-    for (std::size_t i = 0; i < c.size(); ++i) x += c[i] * directions[i].x, z += c[i] * directions[i].z;
-    headings.push_back(std::atan2(x, z));
-    escapes.push_back(sum(c));
-  }
+  std::vector<double> slopes;
   smooth_headings(headings, escapes, &slopes);
-  std::vector<double> turn(counts.size());
+  std::vector<double> turn(headings.size());
   for (std::size_t b = 0; b < turn.size(); ++b)
     turn[b] = std::clamp(slopes[b] / (alpha_edges[b + 1] - alpha_edges[b]), -kMaxFittedTurn, kMaxFittedTurn);
   return turn;
@@ -739,11 +733,12 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   const AlphaMarginal marginal = s.smooth_alpha ? smooth_alpha_marginal(t) : AlphaMarginal{};
   const std::vector<double> tilts =
       marginal.sub_escapes.empty() ? fit_alpha_tilts(t) : tilts_from_sub_counts(t, marginal.sub_escapes);
+  if (s.kind == ModelKind::kVmf && s.turn && t.alpha_bins > 1) seen.set_turns(tilts);
   FitReport local;
   FitReport& r = report ? *report : local;
   r = FitReport{};
   QuadratureLevels levels(*grid);
-  if (s.kind == ModelKind::kVmf && s.turn && t.alpha_bins > 1) seen.set_turns(tilts, levels);
+
 
   // Model size: given, or the candidate with the lowest held-out NLL, an unbiased estimate of
   // the model's cross-entropy with the truth. (A rule that prefers smaller models within noise

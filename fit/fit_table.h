@@ -82,12 +82,11 @@ std::vector<double> smooth_headings(std::vector<double> headings, const std::vec
                                     std::vector<double>* slopes = nullptr);
 
 // The rate at which each bin's direction density turns about y with the exit angle
-// (StfModel::alpha_turn), in radians per radian of alpha: the slope of its smoothed heading
-// (smooth_headings of the headings of `counts`, each bin's escapes after two or more collisions
-// on the grid whose cell centres are `directions`), clamped to [-kMaxFittedTurn, kMaxFittedTurn]; 0 where the
-// slope is not known.
+// (StfModel::alpha_turn), in radians per radian of alpha: the slope at the bin of its smoothed
+// heading (smooth_headings of the bins' headings and escapes after two or more collisions),
+// clamped to [-kMaxFittedTurn, kMaxFittedTurn]; 0 where the slope is not known.
 inline constexpr double kMaxFittedTurn = 4;
-std::vector<double> alpha_turns(const std::vector<std::vector<double>>& counts, const std::vector<Vec3>& directions,
+std::vector<double> alpha_turns(const std::vector<double>& headings, const std::vector<double>& escapes,
                                 const std::vector<double>& alpha_edges);
 
 // Candidate sizes tried by vmf:auto and sh:auto.

@@ -123,17 +123,15 @@ class PoissonDeviance final : public ceres::CostFunction {
     std::vector<double> mass(std::size_t(K) * rows, 0), d_theta(derivatives ? mass.size() : 0, 0),
         d_mean(derivatives ? 3 * mass.size() : 0, 0);
     std::vector<double> total(K, 0), total_theta(K, 0), total_mean(3 * K, 0);
+    CopyScratch scratch(rows, derivatives, !nodes_.empty());
     for (int k = 0; k < K; ++k) {
       const double kappa = std::exp(log_kappa[k]);
       const Vec3 mean = normalize({params[2 + k][0], params[2 + k][1], params[2 + k][2]});
       const std::size_t at = std::size_t(k) * rows;
-      LobeIntegrals out{&mass[at], derivatives ? &d_theta[at] : nullptr, derivatives ? &d_mean[3 * at] : nullptr,
-                        &total[k], &total_theta[k], &total_mean[3 * k]};
-      if (nodes_.empty()) {
-        integrate_lobe(mean, kappa, outward_ ? PointFactor{outward_} : PointFactor{}, out);
-        continue;
-      }
-      integrate_turned_lobe(mean, kappa, rows, out);
+      integrate_bin_lobe(mean, kappa,
+                         {&mass[at], derivatives ? &d_theta[at] : nullptr, derivatives ? &d_mean[3 * at] : nullptr,
+                          &total[k], &total_theta[k], &total_mean[3 * k]},
+                         scratch);
     }
 
     // A hemispherical lobe turned wholly below the bin's tangent planes has no mass at all: it
@@ -201,13 +199,12 @@ class PoissonDeviance final : public ceres::CostFunction {
     widen_above_ = 0.6 / std::sqrt(std::max(escapes, 1.0));
     const int rows = int(count_.size());
     std::vector<double> p(std::size_t(rows), 0.0), mass(p.size());
+    CopyScratch scratch(rows, false, !nodes_.empty());
     for (const VmfLobe& l : lobes) {
       if (l.weight <= 0) continue;
       std::fill(mass.begin(), mass.end(), 0.0);
       double total = 0, unused[4] = {0, 0, 0, 0};
-      const LobeIntegrals out{mass.data(), nullptr, nullptr, &total, unused, unused + 1};
-      if (nodes_.empty()) integrate_lobe(l.mean, l.kappa, outward_ ? PointFactor{outward_} : PointFactor{}, out);
-      else integrate_turned_lobe(l.mean, l.kappa, rows, out);
+      integrate_bin_lobe(l.mean, l.kappa, {mass.data(), nullptr, nullptr, &total, unused, unused + 1}, scratch);
       if (!(total > 1e-150)) continue;
       for (int r = 0; r < rows; ++r) p[std::size_t(r)] += l.weight * mass[std::size_t(r)] / total;
     }
@@ -305,22 +302,33 @@ class PoissonDeviance final : public ceres::CostFunction {
     }
   }
 
-  // A turning bin's lobe (VmfFitOptions::turn): the mean of its turned copies, each normalised
-  // over the sphere, so the lobe's masses are normalised already (totals 1, no pull). The copy
-  // at turn t has its mean turned by t and the outward factor of the bin's edges moved by t, and
-  // d mass / d mean = R(t)^T d mass / d (R(t) mean). A lobe broad against the turn across the
-  // bin (one copy) is integrated as it stands. Only the rows a copy reaches are folded in.
-  void integrate_turned_lobe(const Vec3& mean, double kappa, int rows, const LobeIntegrals& out) const {
+  // One copy's integrals, zero outside the rows it reached (`touched`, flagged in `marked`), which
+  // are zeroed again after they are folded in: allocated once per evaluation, not once per lobe.
+  struct CopyScratch {
+    std::vector<double> m, dt, dm;
+    std::vector<char> marked;
+    std::vector<int> touched;
+    CopyScratch(int rows, bool derivatives, bool needed)
+        : m(needed ? std::size_t(rows) : 0, 0.0), dt(needed && derivatives ? std::size_t(rows) : 0, 0.0),
+          dm(needed && derivatives ? 3 * std::size_t(rows) : 0, 0.0), marked(needed ? std::size_t(rows) : 0, 0) {}
+  };
+
+  // One lobe of the bin. In a turning bin (VmfFitOptions::turn) the lobe is the mean of its
+  // turned copies, each normalised over the sphere, so its masses are normalised already (totals
+  // 1, no pull). The copy at turn t has its mean turned by t and the outward factor of the bin's
+  // edges moved by t, and d mass / d mean = R(t)^T d mass / d (R(t) mean). A lobe broad against
+  // the turn across the bin (one copy), and every lobe of a bin that stands still, is integrated
+  // as it stands. Only the rows a copy reaches are folded in.
+  void integrate_bin_lobe(const Vec3& mean, double kappa, const LobeIntegrals& out, CopyScratch& scratch) const {
     const int copies = nodes_needed(kappa);
     if (copies == 1) {
       integrate_lobe(mean, kappa, outward_ ? PointFactor{outward_} : PointFactor{}, out);
       return;
     }
     const bool derivatives = out.d_theta != nullptr;
-    const std::size_t n = std::size_t(rows);
-    std::vector<double> m(n, 0.0), dt(derivatives ? n : 0, 0.0), dm(derivatives ? 3 * n : 0, 0.0);
-    std::vector<char> marked(n, 0);
-    std::vector<int> touched;
+    std::vector<double>&m = scratch.m, &dt = scratch.dt, &dm = scratch.dm;
+    std::vector<char>& marked = scratch.marked;
+    std::vector<int>& touched = scratch.touched;
     for (const Node& node : nodes_[std::size_t(copies - 1)]) {
       double t = 0, tt = 0, tm[3] = {0, 0, 0};
       PointFactor factor;

@@ -668,6 +668,10 @@ Table synthetic_table(const std::vector<VmfLobe>& truth, std::int64_t per_half, 
   auto grid = make_grid(t.grid);
   t.cells = grid->cell_count();
   t.solid_angle = grid->solid_angles();
+  for (std::int64_t c = 0; c < t.cells; ++c) {
+    const Vec3 d = grid->centre(c);
+    t.direction.push_back({d.x, d.y, d.z});
+  }
   for (int b = 0; b <= t.alpha_bins; ++b) t.alpha_edges.push_back(kPi * b / t.alpha_bins);
   std::uint64_t s = seed;
   auto u = [&] { return double(splitmix64(s) >> 11) * 0x1p-53; };
