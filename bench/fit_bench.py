@@ -1,8 +1,11 @@
 #!/usr/bin/python3
 """Fit seconds per table: 90 alpha bins on csc:45 and healpix:16 (sigma_s 10, g 0.5, 1e6 paths),
 models vmf:1/4/8 and sh:8/16, on one thread and on all cores, as JSON (stdout and --out).
+With --baseline BINARY (another build of stf) each fit is also run with it, in turns with
+build/stf, and the ratio baseline / build/stf of their seconds is reported: the machine's noise
+falls on both alike.
 
-Usage: bench/fit_bench.py [--out FILE] [--paths N]     Needs build/stf.
+Usage: bench/fit_bench.py [--out FILE] [--paths N] [--baseline BINARY]     Needs build/stf.
 """
 import argparse
 import json
@@ -20,6 +23,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", default="")
     ap.add_argument("--paths", default="1e6")
+    ap.add_argument("--baseline", default="", help="another stf binary to time in turns with build/stf")
     a = ap.parse_args()
     cores = os.cpu_count()
     results = {"paths": a.paths, "alpha_bins": 90, "cores": cores, "fits": []}
@@ -31,12 +35,17 @@ def main():
             for spec in ["vmf:1", "vmf:4", "vmf:8", "sh:8", "sh:16"]:
                 row = {"grid": grid, "model": spec}
                 for threads in [1, cores]:
-                    model = os.path.join(tmp, "model.h5")
-                    subprocess.run([STF, "fit", table, "--model", spec, "--threads", str(threads), "--quiet",
-                                    "-o", model], check=True)
-                    with h5py.File(model, "r") as f:
-                        row[f"seconds_{threads}_threads"] = round(float(f.attrs["fit_time_s"]), 3)
-                        row["model_bytes"] = int(f.attrs["model_bytes"])
+                    for label, binary in [("", STF)] + ([("baseline_", a.baseline)] if a.baseline else []):
+                        model = os.path.join(tmp, "model.h5")
+                        subprocess.run([binary, "fit", table, "--model", spec, "--threads", str(threads), "--quiet",
+                                        "-o", model], check=True)
+                        with h5py.File(model, "r") as f:
+                            row[f"{label}seconds_{threads}_threads"] = round(float(f.attrs["fit_time_s"]), 3)
+                            if not label:
+                                row["model_bytes"] = int(f.attrs["model_bytes"])
+                    if a.baseline:
+                        row[f"speedup_{threads}_threads"] = round(
+                            row[f"baseline_seconds_{threads}_threads"] / row[f"seconds_{threads}_threads"], 2)
                 results["fits"].append(row)
                 print(json.dumps(row), flush=True)
     text = json.dumps(results, indent=1)

@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "cell_probability.h"
+#include "exp_in_place.h"
 #include "stf/hemisphere.h"
 #include "stf/tilt.h"
 
@@ -234,6 +235,50 @@ class PoissonDeviance final : public ceres::CostFunction {
     double operator()(std::size_t i, const Vec3& x) const { return at_level ? at_level[i] : turned ? (*turned)(x) : 1.0; }
   };
 
+  // Points of one lobe whose exponentials are taken together (exp_in_place, several to an
+  // instruction): each point's exponent and what multiplies the exponential, in the order the
+  // points were met, so that the sums are added in the same order as point by point.
+  struct PointBatch {
+    static constexpr int kSize = 64;
+    int n = 0;
+    double exponent[kSize], scale[kSize], theta[kSize], theta_scale[kSize], mean_scale[kSize], factor[kSize];
+    int row[kSize];
+    const Vec3* x[kSize];
+  };
+
+  // Adds the batch's points to `out` and empties it. The totals are summed here first: added to
+  // `out` point by point they would be a chain of stores the compiler cannot keep in registers
+  // (`out`'s arrays might overlap them).
+  static void flush(PointBatch& b, bool derivatives, const LobeIntegrals& out) {
+    exp_in_place(b.exponent, b.n);
+    double total = 0, total_theta = 0, total_mean[3] = {0, 0, 0};
+    for (int k = 0; k < b.n; ++k) {
+      const int row = b.row[k];
+      const double f = b.factor[k];
+      double v = b.scale[k] * b.exponent[k];
+      double vt = v * b.theta[k] * b.theta_scale[k];  // d v / d log kappa
+      double vm = v * b.mean_scale[k];                // d v / d mean = vm * x
+      v *= f;  // the outward factor of hemispherical lobes
+      total += v;
+      if (row >= 0) out.mass[row] += v;
+      if (row >= 0 && out.touched && !out.marked[row]) out.marked[row] = 1, out.touched->push_back(row);
+      if (!derivatives) continue;
+      const Vec3& x = *b.x[k];
+      vt *= f, vm *= f;
+      total_theta += vt;
+      total_mean[0] += vm * x.x, total_mean[1] += vm * x.y, total_mean[2] += vm * x.z;
+      if (row < 0) continue;
+      out.d_theta[row] += vt;
+      out.d_mean[3 * row] += vm * x.x, out.d_mean[3 * row + 1] += vm * x.y, out.d_mean[3 * row + 2] += vm * x.z;
+    }
+    *out.total += total;
+    if (derivatives) {
+      *out.total_theta += total_theta;
+      for (int axis = 0; axis < 3; ++axis) out.total_mean[axis] += total_mean[axis];
+    }
+    b.n = 0;
+  }
+
   // Adds one lobe's cell masses, totals and their derivatives to `out`, each point times its
   // outward factor.
   void integrate_lobe(const Vec3& mean, double kappa, PointFactor factor, const LobeIntegrals& out) const {
@@ -259,8 +304,8 @@ class PoissonDeviance final : public ceres::CostFunction {
     const double reach = far > -1 ? std::acos(far) + levels_.spread(level) : kPi;
     const double cos_reach = reach < kPi ? std::cos(reach) : -2.0;
     const std::vector<Vec3>& centre = levels_.centres();
+    PointBatch batch;
     for (std::size_t c = 0; c < row_of_cell_.size(); ++c) {
-      const int row = row_of_cell_[c];
       if (dot(mean, centre[c]) < cos_reach) continue;
       for (int j = 0; j < q.per_cell; ++j) {
         const std::size_t i = c * q.per_cell + j;
@@ -271,35 +316,25 @@ class PoissonDeviance final : public ceres::CostFunction {
         // to the lobe's mass (and exp would take its slow underflow path).
         if (a != cut_for) cut_for = a, min_cosine = 1 - 40 * (1 + kappa * a / 12) / kappa;
         if (cosine < min_cosine) continue;
-        double v, vt, vm;
+        const int k = batch.n++;
+        batch.row[k] = row_of_cell_[c], batch.factor[k] = f, batch.x[k] = &x;
         if (widen) {
           if (a != widened_for) {
             const double stretch = 1 + kappa * a / 12;
             widened_for = a, ke = kappa / stretch, d_ke = kappa / (stretch * stretch);
             widened_norm(ke, norm, dlog);
           }
-          v = a * norm * std::exp(ke * (cosine - 1));
           // d v / d log kappa = v (dlog_norm(ke) + cos - 1) (d ke / d kappa) kappa.
-          vt = v * (dlog + cosine - 1) * d_ke;
-          vm = v * ke;  // d v / d mean = vm * x
+          batch.exponent[k] = ke * (cosine - 1), batch.scale[k] = a * norm;
+          batch.theta[k] = dlog + cosine - 1, batch.theta_scale[k] = d_ke, batch.mean_scale[k] = ke;
         } else {
-          v = a * norm0 * std::exp(kappa * (cosine - 1));
-          vt = v * (dlog0 + kappa * (cosine - 1));
-          vm = v * kappa;
+          batch.exponent[k] = kappa * (cosine - 1), batch.scale[k] = a * norm0;
+          batch.theta[k] = dlog0 + kappa * (cosine - 1), batch.theta_scale[k] = 1, batch.mean_scale[k] = kappa;
         }
-        v *= f;  // the outward factor of hemispherical lobes
-        *out.total += v;
-        if (row >= 0) out.mass[row] += v;
-        if (row >= 0 && out.touched && !out.marked[row]) out.marked[row] = 1, out.touched->push_back(row);
-        if (!derivatives) continue;
-        vt *= f, vm *= f;
-        *out.total_theta += vt;
-        out.total_mean[0] += vm * x.x, out.total_mean[1] += vm * x.y, out.total_mean[2] += vm * x.z;
-        if (row < 0) continue;
-        out.d_theta[row] += vt;
-        out.d_mean[3 * row] += vm * x.x, out.d_mean[3 * row + 1] += vm * x.y, out.d_mean[3 * row + 2] += vm * x.z;
+        if (batch.n == PointBatch::kSize) flush(batch, derivatives, out);
       }
     }
+    flush(batch, derivatives, out);
   }
 
   // One copy's integrals, zero outside the rows it reached (`touched`, flagged in `marked`), which

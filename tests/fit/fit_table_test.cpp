@@ -202,8 +202,8 @@ TEST(FitTable, FoldingAndPoolingBringSparseForwardPeaksCloser) {
 // collisions in its heaviest alpha bins and tens in the far ones. Against an independent table,
 // pooling bin by bin (sloped pools where the forward peak changes shape, wide flat ones in the
 // sparse far bins) brings the model much closer than fitting every bin alone; both kinds are
-// chosen. The held-out half does not keep a blend here, and one would cost: the peak turns with
-// the exit point, and blending neighbouring bins broadens it.
+// chosen. The held-out half keeps no blend here: its gain is within two standard errors (tau 1
+// g 0.9, five seeds: -23 to +7 nats against 12-14).
 TEST(FitTable, PoolsChosenBinByBinBringThinForwardTablesCloser) {
   const Medium m{0.95, 0.05, 0.9, 1};  // tau 1, albedo 0.95
   const Table small = make_table(m, 100000, "healpix:16", 45, 2), reference = make_table(m, 3000000, "healpix:16", 45, 1000);
@@ -220,8 +220,6 @@ TEST(FitTable, PoolsChosenBinByBinBringThinForwardTablesCloser) {
   EXPECT_GT(sloped, 0);
   EXPECT_GT(wide, 0);
   EXPECT_EQ(model.alpha_blend, 0);
-  model.alpha_blend = 1;
-  EXPECT_GT(evaluate(model, reference).joint_tv, tv_pooled);
 }
 
 // The forward peak of a thin forward-scattering medium turns with the exit point, by about 1.5
@@ -415,7 +413,9 @@ TEST(FitTable, OtherOutcomesTakeTheExactPartsAndTheCollisionCount) {
     EXPECT_NEAR(mean(fitted), fitted_truth, allowed(fitted)) << tau;
     EXPECT_LT(variance(absorbed), c.bound * variance(absorbed_plain))
         << tau << ": " << variance(absorbed) << " against " << variance(absorbed_plain);
-    if (tau == 1) EXPECT_LT(variance(fitted), 0.01 * variance(fitted_plain)) << variance(fitted) << " against " << variance(fitted_plain);
+    if (tau == 1) {
+      EXPECT_LT(variance(fitted), 0.01 * variance(fitted_plain)) << variance(fitted) << " against " << variance(fitted_plain);
+    }
   }
 }
 
@@ -708,7 +708,9 @@ TEST(FitTable, AutoChoosesTheTruthsSizeWithinNoise) {
       if (nll < lowest) lowest = nll, misses = 0;
       else ++misses;
     }
-    if (r->candidates.size() < auto_candidates(ModelKind::kVmf).size()) EXPECT_EQ(misses, 2);
+    if (r->candidates.size() < auto_candidates(ModelKind::kVmf).size()) {
+      EXPECT_EQ(misses, 2);
+    }
   }
   EXPECT_EQ(r1.chosen_size, 1);
   EXPECT_GE(r3.chosen_size, 3);
