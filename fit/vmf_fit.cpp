@@ -304,8 +304,9 @@ class PoissonDeviance final : public ceres::CostFunction {
     const double reach = far > -1 ? std::acos(far) + levels_.spread(level) : kPi;
     const double cos_reach = reach < kPi ? std::cos(reach) : -2.0;
     const std::vector<Vec3>& centre = levels_.centres();
+    const auto [first, last] = levels_.cell_range(mean, reach);
     PointBatch batch;
-    for (std::size_t c = 0; c < row_of_cell_.size(); ++c) {
+    for (std::size_t c = first; c < last; ++c) {
       if (dot(mean, centre[c]) < cos_reach) continue;
       for (int j = 0; j < q.per_cell; ++j) {
         const std::size_t i = c * q.per_cell + j;
@@ -620,6 +621,12 @@ QuadratureLevels::QuadratureLevels(const DirectionGrid& grid) {
   for (int level = 0; level <= kMaxLevel; ++level) levels_.push_back(grid.quadrature(level));
   for (std::size_t c = 0; c < levels_[0].point.size() / std::size_t(levels_[0].per_cell); ++c)
     centres_.push_back(cell_centre(levels_[0], c));
+  lowest_z_up_to_.resize(centres_.size());
+  highest_z_from_.resize(centres_.size());
+  for (std::size_t c = 0; c < centres_.size(); ++c)
+    lowest_z_up_to_[c] = std::min(centres_[c].z, c > 0 ? lowest_z_up_to_[c - 1] : 2.0);
+  for (std::size_t c = centres_.size(); c-- > 0;)
+    highest_z_from_[c] = std::max(centres_[c].z, c + 1 < centres_.size() ? highest_z_from_[c + 1] : -2.0);
   for (const CellQuadrature& q : levels_) {
     double widest = 1;  // the smallest cosine between a centre and a point of its cell
     for (std::size_t i = 0; i < q.point.size(); ++i)
@@ -640,6 +647,23 @@ QuadratureLevels::QuadratureLevels(const DirectionGrid& grid) {
   std::vector<double> omega = grid.solid_angles();
   cell_solid_angle_ = *std::max_element(omega.begin(), omega.end());
   pole_cell_ = grid.cell({0, 0, 1});
+}
+
+std::pair<std::size_t, std::size_t> QuadratureLevels::cell_range(const Vec3& mean, double reach) const {
+  if (reach >= kPi) return {0, centres_.size()};
+  // A centre within `reach` of the mean has its polar angle within `reach` of the mean's; the
+  // margin covers rounding.
+  const double polar = std::acos(std::clamp(mean.z, -1.0, 1.0)), margin = 1e-9;
+  const double z_high = std::cos(std::max(0.0, polar - reach)) + margin;
+  const double z_low = std::cos(std::min(kPi, polar + reach)) - margin;
+  // Cells before the first whose running lowest z is at most z_high all lie above the band;
+  // cells after the last whose highest z from there on is at least z_low all lie below it.
+  const auto first = std::partition_point(lowest_z_up_to_.begin(), lowest_z_up_to_.end(),
+                                          [&](double z) { return z > z_high; });
+  const auto last = std::partition_point(highest_z_from_.begin(), highest_z_from_.end(),
+                                         [&](double z) { return z >= z_low; });
+  const std::size_t a = std::size_t(first - lowest_z_up_to_.begin()), b = std::size_t(last - highest_z_from_.begin());
+  return {a, std::max(a, b)};
 }
 
 int QuadratureLevels::level_for_kappa(double kappa, double counts) const {

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "grid.h"
@@ -80,6 +81,11 @@ class QuadratureLevels {
   // a lobe can skip a whole cell when its nearest possible point is beyond its reach.
   const std::vector<Vec3>& centres() const { return centres_; }
   double spread(int level) const { return spread_[std::size_t(level)]; }
+  // The cells [first, last) outside which no centre lies within `reach` radians of `mean`, by
+  // the centres' z alone: on a grid numbered ring by ring (HEALPix) a narrow lobe's cells are
+  // a short run of indices, and a loop over them visits its cells in the same order as one
+  // over all cells.
+  std::pair<std::size_t, std::size_t> cell_range(const Vec3& mean, double reach) const;
   // For a level below kMaxLevel: the point of that level whose sub-cell holds each point of
   // kMaxLevel (the nearest of its cell's).
   const std::vector<std::uint32_t>& finest_parent(int level) const { return finest_parent_[std::size_t(level)]; }
@@ -88,6 +94,9 @@ class QuadratureLevels {
   std::vector<CellQuadrature> levels_;
   std::array<std::vector<std::uint32_t>, kMaxLevel> finest_parent_;
   std::vector<Vec3> centres_;
+  // The smallest centre z of cells 0 .. c and the largest of cells c .. end: both never rise
+  // with c, so they bound a z band's cells by binary search whatever the numbering.
+  std::vector<double> lowest_z_up_to_, highest_z_from_;
   std::vector<double> spread_;
   double cell_solid_angle_;  // the largest cell's
   std::int64_t pole_cell_ = 0;

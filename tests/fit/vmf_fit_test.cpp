@@ -93,6 +93,36 @@ TEST(VmfFit, BatchedExponentialsMatchStdExp) {
   EXPECT_LE(worst, 4.0);
 }
 
+// A lobe's integrals visit only the cells of QuadratureLevels::cell_range: every cell whose
+// centre lies within the reach of the mean must be inside it, on a grid numbered ring by ring
+// (HEALPix, where narrow lobes get short runs) and on one that is not (CSC).
+TEST(VmfFit, CellRangesHoldEveryCellWithinReach) {
+  for (const char* spec : {"healpix:8", "csc:12"}) {
+    auto grid = make_grid(spec);
+    QuadratureLevels levels(*grid);
+    const std::vector<Vec3>& centre = levels.centres();
+    std::uint64_t state = 7;
+    std::size_t visited = 0, tries = 0;
+    for (int k = 0; k < 2000; ++k) {
+      const double z = 2 * uniform(state) - 1, phi = 2 * kPi * uniform(state), r = std::sqrt(1 - z * z);
+      const Vec3 mean = k < 4 ? Vec3{0, 0, k % 2 ? 1.0 : -1.0} : Vec3{r * std::cos(phi), r * std::sin(phi), z};
+      const double reach = k % 5 == 0 ? kPi : 0.5 * uniform(state);
+      const auto [first, last] = levels.cell_range(mean, reach);
+      ASSERT_LE(first, last);
+      ASSERT_LE(last, centre.size());
+      for (std::size_t c = 0; c < centre.size(); ++c) {
+        if (dot(mean, centre[c]) >= std::cos(reach)) {
+          ASSERT_TRUE(c >= first && c < last) << spec << " cell " << c;
+        }
+      }
+      visited += last - first, tries += centre.size();
+    }
+    if (std::string(spec) == "healpix:8") {
+      EXPECT_LT(double(visited), 0.5 * double(tries));  // runs, not the sphere
+    }
+  }
+}
+
 TEST(VmfFit, RecoversOneLobe) {
   const std::uint64_t seed = test::test_seed(41);
   SCOPED_TRACE(test::seed_trace(seed));
