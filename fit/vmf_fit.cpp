@@ -237,7 +237,7 @@ class PoissonDeviance final : public ceres::CostFunction {
 
   // Points of one lobe whose exponentials are taken together (exp_in_place, several to an
   // instruction): each point's exponent and what multiplies the exponential, in the order the
-  // points were met, so that the sums are added in the same order as point by point.
+  // points were met, so that each row's sums are added in the same order as point by point.
   struct PointBatch {
     static constexpr int kSize = 64;
     int n = 0;
