@@ -12,12 +12,19 @@ std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, co
   for (const VmfLobe& lobe : lobes) {
     if (lobe.weight <= 0) continue;
     double total = 0;
+    // The widened lobe and its normalisation depend on the sub-cell's solid angle alone: on an
+    // equal-area grid (HEALPix) they are computed once per lobe. The density is vmf_pdf's, to
+    // the bit: its normalisation over 2 pi, times the exponential.
+    double widened_for = -1, kappa = 0, norm = 0;
     for (std::size_t c = 0; c < cells; ++c) {
       double m = 0;
       for (int j = 0; j < q.per_cell; ++j) {
         std::size_t k = c * q.per_cell + j;
-        m += q.weight[k] * vmf_pdf(widened_kappa(lobe.kappa, q.weight[k]), dot(lobe.mean, q.point[k])) *
-             (factor ? (*factor)[k] : 1.0);
+        if (q.weight[k] != widened_for) {
+          widened_for = q.weight[k], kappa = widened_kappa(lobe.kappa, q.weight[k]);
+          norm = (kappa < 1e-12 ? 0.5 + 0.5 * kappa : kappa / -std::expm1(-2 * kappa)) / (2 * kPi);
+        }
+        m += q.weight[k] * (norm * std::exp(kappa * (dot(lobe.mean, q.point[k]) - 1))) * (factor ? (*factor)[k] : 1.0);
       }
       mass[c] = m;
       total += m;
