@@ -622,18 +622,56 @@ void wide_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& g
 
 // Held-out NLL of the half-0 fits behind `flat` (its per-bin cell log-probabilities) with each
 // bin's density blended as a model of each width 0 .. max_width blends it (tilts from half 0),
-// and the width chosen. Blending adds no parameter, but a width is kept only where its held-out
-// gain over none exceeds kBlendStandardErrors standard errors: near the axis of forward media
-// the bins' peaks turn with alpha and a mixture of neighbours broadens them, which the held-out
-// NLL, summed over all bins, can miss by a nat or two while TV grows (tau 1 g 0.9 at 1e5 paths,
-// seed 4: blend 1 ahead by 1.1 standard errors, TV 0.0165 with it, 0.0133 without). Among the
-// widths so kept the lowest NLL wins.
+// and the width chosen; in turning models (`turned`) each neighbour's density as the sampler
+// turns it into the bin. Blending adds no parameter, but a width is kept only where its held-out
+// gain over none exceeds kBlendStandardErrors standard errors: in models whose bins stood still,
+// the forward peak near the axis turns with alpha and a mixture of neighbours broadens it, which
+// the held-out NLL, summed over all bins, could miss by a nat or two while TV grew (tau 1 g 0.9
+// at 1e5 paths, seed 4: blend 1 ahead by 1.1 standard errors, TV 0.0165 with it, 0.0133
+// without). Among the widths so kept the lowest NLL wins.
 constexpr double kBlendStandardErrors = 2;
+
+// The cell probabilities of bin j's density as a blended model draws it in bin b (null: as in
+// bin j itself).
+using BlendNeighbours = std::function<const std::vector<double>&(int j, int b)>;
+
+// The cell probabilities of bin j's lobes (half-table fits, standing still) as a turning model
+// blends them into bin b: turned by bin j's rate from j's middle to b's, the middle of the exit
+// angles the blend spreads them over, hemispherical lobes with bin j's outward factor turned
+// with them, as the sampler turns it. Scored at their own bin instead, a neighbour's peak lies a bin's turn away (6
+// degrees near the axis at tau 1 g 0.9), and its held-out half calls blends worse that bring
+// the model closer to the reference (docs/fit.md, "Blends of turning bins").
+std::vector<double> neighbour_in_bin(const BinFits& fits, const std::vector<BinTurn>& turns,
+                                     const QuadratureLevels& levels, int j, int b) {
+  const Table& t = *fits.table;
+  const std::vector<double>& edges = t.alpha_edges;
+  auto middle = [&](int bin) { return 0.5 * (edges[std::size_t(bin)] + edges[std::size_t(bin) + 1]); };
+  const double angle = turns[std::size_t(j)].rate * (middle(b) - middle(j));
+  std::vector<VmfLobe> lobes = fits.lobes[std::size_t(j)];
+  for (VmfLobe& l : lobes) l.mean = turn_about_y(l.mean, angle);
+  double escapes = 0;
+  for (int h = 0; h < 2; ++h) escapes += sum(bin_counts(t, h, j));
+  if (!fits.hemispherical) return vmf_cell_probabilities(lobes, levels, escapes);
+  const OutwardFactors outward =
+      outward_factors(levels, edges[std::size_t(j)] + angle, edges[std::size_t(j) + 1] + angle);
+  return vmf_cell_probabilities(lobes, levels, escapes, &outward);
+}
+
+// blended_cells with each neighbour's density as it lies in bin b.
+std::vector<double> turned_blend_cells(const StfModel& m, int b, const std::vector<std::vector<double>>& own,
+                                       const BlendNeighbours& turned) {
+  std::vector<double> p(own[std::size_t(b)].size(), 0.0);
+  for (const auto& [j, share] : blend_shares(m, b, 0, 1)) {
+    const std::vector<double>& cells = j == b ? own[std::size_t(b)] : turned(j, b);
+    for (std::size_t c = 0; c < p.size(); ++c) p[c] += share * cells[c];
+  }
+  return p;
+}
 struct BlendChoice {
   std::vector<double> nll, error;  // per width 0 .. max_width: held-out NLL, its SE against width 0
   int width = 0;
 };
-BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, int max_width) {
+BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, int max_width, const BlendNeighbours& turned) {
   const Table& t = e.table;
   StfModel shape;
   shape.alpha_probability.assign(std::size_t(t.alpha_bins), 0.0);
@@ -643,7 +681,7 @@ BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, int max_width) {
     for (double l : flat.log_p[b]) p[b].push_back(std::exp(l));
   BlendChoice c{{flat.nll}, {0.0}, 0};
   for (shape.alpha_blend = 1; shape.alpha_blend <= max_width; ++shape.alpha_blend) {
-    for (int b = 0; b < t.alpha_bins; ++b) q[b] = blended_cells(shape, b, p);
+    for (int b = 0; b < t.alpha_bins; ++b) q[b] = turned ? turned_blend_cells(shape, b, p, turned) : blended_cells(shape, b, p);
     const HeldOut blended = score(e, 1, q);
     c.nll.push_back(blended.nll);
     c.error.push_back(difference_error(e, 1, blended, flat));
@@ -793,7 +831,25 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
       if (cancelled(s)) return {};
     }
     if (s.automatic && t.alpha_bins > 1) {
-      BlendChoice c = choose_blend(seen, chosen_score, s.max_blend);
+      // A turning model's sampler turns each blended neighbour's density with the exit point, by
+      // the neighbour's own rate: the held-out half scores the blend so (docs/fit.md, "Blends of
+      // turning bins").
+      // Each pair of bins once, every bin's in parallel: [b][j - b + max_blend].
+      BlendNeighbours turned;
+      std::vector<std::vector<std::vector<double>>> into;
+      if (!seen.turns.empty() && s.max_blend > 0) {
+        const int w = s.max_blend, bins = t.alpha_bins;
+        into.assign(std::size_t(bins), std::vector<std::vector<double>>(2 * std::size_t(w) + 1));
+        for_each_bin(bins, s, [&](int b) {
+          for (int j = std::max(0, b - w); j <= std::min(bins - 1, b + w); ++j)
+            if (j != b) into[std::size_t(b)][std::size_t(j - b + w)] = neighbour_in_bin(chosen_fits, seen.turns, levels, j, b);
+        });
+        if (cancelled(s)) return {};
+        turned = [&into, w](int j, int b) -> const std::vector<double>& {
+          return into[std::size_t(b)][std::size_t(j - b + w)];
+        };
+      }
+      BlendChoice c = choose_blend(seen, chosen_score, s.max_blend, turned);
       r.blend_heldout_nll = c.nll;
       r.blend_heldout_nll_error = c.error;
       blend = c.width;
