@@ -83,10 +83,12 @@ std::vector<std::pair<int, double>> blend_shares(const StfModel& m, int b, doubl
   return shares;
 }
 
-std::vector<double> blended_cells(const StfModel& m, int b, const std::vector<std::vector<double>>& cells) {
-  std::vector<double> p(cells[std::size_t(b)].size(), 0.0);
-  for (const auto& [j, share] : blend_shares(m, b, 0, 1))
-    for (std::size_t c = 0; c < p.size(); ++c) p[c] += share * cells[std::size_t(j)][c];
+std::vector<double> blended_cells(const StfModel& m, int b, const CellsInBin& cells_in_b) {
+  std::vector<double> p(cells_in_b(b).size(), 0.0);
+  for (const auto& [j, share] : blend_shares(m, b, 0, 1)) {
+    const std::vector<double>& cells = cells_in_b(j);
+    for (std::size_t c = 0; c < p.size(); ++c) p[c] += share * cells[c];
+  }
   return p;
 }
 

@@ -3,6 +3,7 @@
 // (/escape/multiple_sub_half).
 #pragma once
 
+#include <functional>
 #include <utility>
 #include <vector>
 
@@ -28,9 +29,10 @@ std::vector<double> tilts_from_sub_counts(const Table& t, const std::vector<doub
 // (bin, share) pairs that sum to tilt_mass(tilt of b, u0, u1); one pair, (b, mass), unblended.
 std::vector<std::pair<int, double>> blend_shares(const StfModel& m, int b, double u0, double u1);
 
-// The cell distribution the whole of bin b averages to: the bins' distributions `cells` mixed
-// by blend_shares over [0, 1].
-std::vector<double> blended_cells(const StfModel& m, int b, const std::vector<std::vector<double>>& cells);
+// The cell distribution the whole of bin b averages to: each blended bin j's distribution as it
+// lies in bin b (`cells_in_b(j)`), mixed by blend_shares over [0, 1].
+using CellsInBin = std::function<const std::vector<double>&(int j)>;
+std::vector<double> blended_cells(const StfModel& m, int b, const CellsInBin& cells_in_b);
 
 // `t`'s sub-bin tallies for its alpha bins grouped by `f` (coarsen_table): the sub-bins of a
 // group's bins, in order, with their edges as fractions of the group's area.

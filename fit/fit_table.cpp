@@ -81,6 +81,10 @@ double sum(const std::vector<double>& v) {
   return s;
 }
 
+// Bin b's escapes after two or more collisions, both halves: what a bin's lobes are integrated
+// against (the quadrature level of each lobe).
+double both_halves(const Table& t, int b) { return sum(bin_counts(t, 0, b)) + sum(bin_counts(t, 1, b)); }
+
 // The angle about y from the exit point's z axis to where escapes with these cell counts head
 // on average (their mean direction's azimuth in the x-z plane of the exit point's frame).
 double heading(const Table& t, const std::vector<double>& counts) {
@@ -429,19 +433,26 @@ BinFits fit_bins(const Escapes& e, int half, ModelKind kind, int size, const Qua
   return fits;
 }
 
+// Cell probabilities of vMF lobes of `fits`' kind in a bin of edges [a0, a1] that stands still:
+// hemispherical lobes times the edges' outward factor.
+std::vector<double> lobe_cells(const BinFits& fits, const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
+                               double escapes, double a0, double a1) {
+  if (!fits.hemispherical) return vmf_cell_probabilities(lobes, levels, escapes);
+  const OutwardFactors outward = outward_factors(levels, a0, a1);
+  return vmf_cell_probabilities(lobes, levels, escapes, &outward);
+}
+
 // Cell probabilities of bin b under fitted parameters (vMF, or clamped smoothed SH).
 std::vector<double> bin_probabilities(const BinFits& fits, int b, ModelKind kind, int size, const ShSmoothing& t,
                                       const QuadratureLevels& levels, const std::vector<double>& sh_basis) {
   if (kind == ModelKind::kVmf) {
-    double escapes = 0;
-    for (int h = 0; h < 2; ++h) escapes += sum(bin_counts(*fits.table, h, b));
-    const BinTurn* turn = fits.turns.empty() ? nullptr : &fits.turns[std::size_t(b)];
-    if (!fits.hemispherical && !turn) return vmf_cell_probabilities(fits.lobes[b], levels, escapes);
+    const double escapes = both_halves(*fits.table, b);
     const std::vector<double>& edges = fits.table->alpha_edges;
+    if (fits.turns.empty()) return lobe_cells(fits, fits.lobes[b], levels, escapes, edges[std::size_t(b)], edges[std::size_t(b) + 1]);
     const OutwardFactors outward =
         fits.hemispherical ? outward_factors(levels, edges[std::size_t(b)], edges[std::size_t(b) + 1]) : OutwardFactors{};
-    if (turn) return vmf_bin_probabilities(fits.lobes[b], levels, escapes, fits.hemispherical ? &outward : nullptr, *turn);
-    return vmf_cell_probabilities(fits.lobes[b], levels, escapes, &outward);
+    return vmf_bin_probabilities(fits.lobes[b], levels, escapes, fits.hemispherical ? &outward : nullptr,
+                                 fits.turns[std::size_t(b)]);
   }
   std::vector<double> c = fits.sh[b];
   smooth_sh(c, size, t);
@@ -631,47 +642,43 @@ void wide_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& g
 // without). Among the widths so kept the lowest NLL wins.
 constexpr double kBlendStandardErrors = 2;
 
-// The cell probabilities of bin j's density as a blended model draws it in bin b (null: as in
-// bin j itself).
-using BlendNeighbours = std::function<const std::vector<double>&(int j, int b)>;
-
-// The cell probabilities of bin j's lobes (half-table fits, standing still) as a turning model
-// blends them into bin b: turned by bin j's rate from j's middle to b's, the middle of the exit
-// angles the blend spreads them over, hemispherical lobes with bin j's outward factor turned
-// with them, as the sampler turns it. Scored at their own bin instead, a neighbour's peak lies a bin's turn away (6
-// degrees near the axis at tau 1 g 0.9), and its held-out half calls blends worse that bring
-// the model closer to the reference (docs/fit.md, "Blends of turning bins").
-std::vector<double> neighbour_in_bin(const BinFits& fits, const std::vector<BinTurn>& turns,
-                                     const QuadratureLevels& levels, int j, int b) {
+// Each bin's half-table lobes (standing still) as a turning model blends them into the bins
+// within `width` of it: bin j in bin b turned by bin j's rate from j's middle to b's (the middle
+// of the exit angles the blend spreads it over), hemispherical lobes with bin j's outward factor
+// turned with them, as the sampler turns them. Scored at their own bin instead, a neighbour's
+// peak lies a bin's turn away (6 degrees near the axis at tau 1 g 0.9), and the held-out half
+// called blends worse that bring the model closer to the reference (docs/fit.md, "Blends of
+// turning bins"). Each pair once, the bins in parallel.
+struct TurnedNeighbours {
+  int width = 0;
+  std::vector<std::vector<std::vector<double>>> cells;  // [b][j - b + width]
+  const std::vector<double>& at(int j, int b) const { return cells[std::size_t(b)][std::size_t(j - b + width)]; }
+};
+TurnedNeighbours turned_neighbours(const BinFits& fits, const std::vector<BinTurn>& turns, const QuadratureLevels& levels,
+                                   int width, const FitSettings& s) {
   const Table& t = *fits.table;
   const std::vector<double>& edges = t.alpha_edges;
   auto middle = [&](int bin) { return 0.5 * (edges[std::size_t(bin)] + edges[std::size_t(bin) + 1]); };
-  const double angle = turns[std::size_t(j)].rate * (middle(b) - middle(j));
-  std::vector<VmfLobe> lobes = fits.lobes[std::size_t(j)];
-  for (VmfLobe& l : lobes) l.mean = turn_about_y(l.mean, angle);
-  double escapes = 0;
-  for (int h = 0; h < 2; ++h) escapes += sum(bin_counts(t, h, j));
-  if (!fits.hemispherical) return vmf_cell_probabilities(lobes, levels, escapes);
-  const OutwardFactors outward =
-      outward_factors(levels, edges[std::size_t(j)] + angle, edges[std::size_t(j) + 1] + angle);
-  return vmf_cell_probabilities(lobes, levels, escapes, &outward);
+  TurnedNeighbours n{width, std::vector<std::vector<std::vector<double>>>(
+                                std::size_t(t.alpha_bins), std::vector<std::vector<double>>(2 * std::size_t(width) + 1))};
+  for_each_bin(t.alpha_bins, s, [&](int b) {
+    for (int j = std::max(0, b - width); j <= std::min(t.alpha_bins - 1, b + width); ++j) {
+      if (j == b) continue;
+      const double angle = turns[std::size_t(j)].rate * (middle(b) - middle(j));
+      std::vector<VmfLobe> lobes = fits.lobes[std::size_t(j)];
+      for (VmfLobe& l : lobes) l.mean = turn_about_y(l.mean, angle);
+      n.cells[std::size_t(b)][std::size_t(j - b + width)] = lobe_cells(
+          fits, lobes, levels, both_halves(t, j), edges[std::size_t(j)] + angle, edges[std::size_t(j) + 1] + angle);
+    }
+  });
+  return n;
 }
 
-// blended_cells with each neighbour's density as it lies in bin b.
-std::vector<double> turned_blend_cells(const StfModel& m, int b, const std::vector<std::vector<double>>& own,
-                                       const BlendNeighbours& turned) {
-  std::vector<double> p(own[std::size_t(b)].size(), 0.0);
-  for (const auto& [j, share] : blend_shares(m, b, 0, 1)) {
-    const std::vector<double>& cells = j == b ? own[std::size_t(b)] : turned(j, b);
-    for (std::size_t c = 0; c < p.size(); ++c) p[c] += share * cells[c];
-  }
-  return p;
-}
 struct BlendChoice {
   std::vector<double> nll, error;  // per width 0 .. max_width: held-out NLL, its SE against width 0
   int width = 0;
 };
-BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, int max_width, const BlendNeighbours& turned) {
+BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, int max_width, const TurnedNeighbours& turned) {
   const Table& t = e.table;
   StfModel shape;
   shape.alpha_probability.assign(std::size_t(t.alpha_bins), 0.0);
@@ -681,7 +688,10 @@ BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, int max_width, c
     for (double l : flat.log_p[b]) p[b].push_back(std::exp(l));
   BlendChoice c{{flat.nll}, {0.0}, 0};
   for (shape.alpha_blend = 1; shape.alpha_blend <= max_width; ++shape.alpha_blend) {
-    for (int b = 0; b < t.alpha_bins; ++b) q[b] = turned ? turned_blend_cells(shape, b, p, turned) : blended_cells(shape, b, p);
+    for (int b = 0; b < t.alpha_bins; ++b)
+      q[b] = blended_cells(shape, b, [&](int j) -> const std::vector<double>& {
+        return j == b || turned.cells.empty() ? p[std::size_t(j)] : turned.at(j, b);
+      });
     const HeldOut blended = score(e, 1, q);
     c.nll.push_back(blended.nll);
     c.error.push_back(difference_error(e, 1, blended, flat));
@@ -777,7 +787,6 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   r = FitReport{};
   QuadratureLevels levels(*grid);
 
-
   // Model size: given, or the candidate with the lowest held-out NLL, an unbiased estimate of
   // the model's cross-entropy with the truth. (A rule that prefers smaller models within noise
   // would err twice toward too few parameters: the candidates are fitted to half the escapes
@@ -831,24 +840,11 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
       if (cancelled(s)) return {};
     }
     if (s.automatic && t.alpha_bins > 1) {
-      // A turning model's sampler turns each blended neighbour's density with the exit point, by
-      // the neighbour's own rate: the held-out half scores the blend so (docs/fit.md, "Blends of
-      // turning bins").
-      // Each pair of bins once, every bin's in parallel: [b][j - b + max_blend].
-      BlendNeighbours turned;
-      std::vector<std::vector<std::vector<double>>> into;
-      if (!seen.turns.empty() && s.max_blend > 0) {
-        const int w = s.max_blend, bins = t.alpha_bins;
-        into.assign(std::size_t(bins), std::vector<std::vector<double>>(2 * std::size_t(w) + 1));
-        for_each_bin(bins, s, [&](int b) {
-          for (int j = std::max(0, b - w); j <= std::min(bins - 1, b + w); ++j)
-            if (j != b) into[std::size_t(b)][std::size_t(j - b + w)] = neighbour_in_bin(chosen_fits, seen.turns, levels, j, b);
-        });
-        if (cancelled(s)) return {};
-        turned = [&into, w](int j, int b) -> const std::vector<double>& {
-          return into[std::size_t(b)][std::size_t(j - b + w)];
-        };
-      }
+      // A turning model's sampler turns each blended neighbour's density with the exit point: the
+      // held-out half scores the blend so.
+      TurnedNeighbours turned;
+      if (!seen.turns.empty() && s.max_blend > 0) turned = turned_neighbours(chosen_fits, seen.turns, levels, s.max_blend, s);
+      if (cancelled(s)) return {};
       BlendChoice c = choose_blend(seen, chosen_score, s.max_blend, turned);
       r.blend_heldout_nll = c.nll;
       r.blend_heldout_nll_error = c.error;
