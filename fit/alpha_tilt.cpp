@@ -58,9 +58,10 @@ std::vector<double> tilts_from_sub_counts(const Table& t, const std::vector<doub
 
 std::vector<std::pair<int, double>> blend_shares(const StfModel& m, int b, double u0, double u1) {
   const double tilt = m.tilt(b);
-  if (m.alpha_blend <= 0) return {{b, tilt_mass(tilt, u0, u1)}};
+  const int width = m.blend_width(b);
+  if (width <= 0) return {{b, tilt_mass(tilt, u0, u1)}};
   std::vector<std::pair<int, double>> shares;
-  for (int j = std::max(0, b - m.alpha_blend); j <= std::min(m.bins() - 1, b + m.alpha_blend); ++j) shares.emplace_back(j, 0.0);
+  for (int j = std::max(0, b - width); j <= std::min(m.bins() - 1, b + width); ++j) shares.emplace_back(j, 0.0);
   // The weights are linear in u but for their normalisation near the first and last bin, with
   // kinks only at the bin's middle: Gauss-Legendre on each side, 16 panels, resolves them and
   // e^{40 u}.

@@ -111,6 +111,10 @@ struct FitReport {
   // auto: held-out NLL of the chosen size per blend width 0 .. kMaxBlend (StfModel::alpha_blend)
   std::vector<double> blend_heldout_nll;
   std::vector<double> blend_heldout_nll_error;  // and its standard error against width 0's
+  // auto: held-out NLL that widths chosen bin by bin (StfModel::alpha_blend_width) gain over the
+  // best single width, and its standard error; kept where the gain exceeds two of them.
+  double blend_by_bin_gain = 0;
+  double blend_by_bin_error = 0;
   // vmf/hvmf auto, when neighbour pooling was tried: the sizes and their held-out NLL fitted
   // with the neighbours' escapes (pool_sizes), against the chosen unpooled size's; and the
   // neighbours' weight the final fit used (0: each bin alone).

@@ -11,9 +11,9 @@ namespace stf::fit {
 
 namespace {
 // Version 2 adds the uncollided fraction, version 3 the once-scattered fraction, version 4 the
-// alpha tilts and blend, version 5 the alpha turns; older versions still load (as fractions,
-// tilts and turns 0).
-constexpr int kFormatVersion = 5;
+// alpha tilts and blend, version 5 the alpha turns, version 6 blend widths per bin; older
+// versions still load (as fractions, tilts and turns 0, one blend width for every bin).
+constexpr int kFormatVersion = 6;
 }
 
 using namespace h5;
@@ -68,6 +68,10 @@ void write_model(const StfModel& m, const FitReport& r, const Provenance& p, con
     put_dataset(alpha, "status", {bins}, status.data());
     if (!m.alpha_tilt.empty()) put_dataset(alpha, "tilt", {bins}, m.alpha_tilt.data());
     if (!m.alpha_turn.empty()) put_dataset(alpha, "turn", {bins}, m.alpha_turn.data());
+    if (!m.alpha_blend_width.empty()) {
+      const std::vector<std::int32_t> width(m.alpha_blend_width.begin(), m.alpha_blend_width.end());
+      put_dataset(alpha, "blend", {bins}, width.data());
+    }
 
     if (m.kind == ModelKind::kVmf) {
       H5::Group g = file.createGroup("/vmf");
@@ -154,6 +158,8 @@ StfModel read_model(const std::string& path) {
     for (std::int32_t s : get_int_dataset(file, "/alpha/status", {bins})) m.status.push_back(BinStatus(s));
     if (version >= 4 && file.nameExists("/alpha/tilt")) m.alpha_tilt = get_dataset(file, "/alpha/tilt", {bins});
     if (version >= 5 && file.nameExists("/alpha/turn")) m.alpha_turn = get_dataset(file, "/alpha/turn", {bins});
+    if (version >= 6 && file.nameExists("/alpha/blend"))
+      for (std::int32_t h : get_int_dataset(file, "/alpha/blend", {bins})) m.alpha_blend_width.push_back(h);
     if (m.kind == ModelKind::kVmf) {
       m.lobes = get_int(file.openGroup("/vmf"), "lobes");
       if (m.lobes < 1 || m.lobes > 64) throw std::runtime_error("vMF lobe count out of range");

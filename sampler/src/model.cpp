@@ -131,14 +131,15 @@ bool finite_in(double v, double lo, double hi) { return std::isfinite(v) && v >=
 }  // namespace
 
 int StfModel::blend_weights(int b, double u, int* blend_bins, double* weights) const {
-  if (alpha_blend <= 0) {
+  const int width = blend_width(b);
+  if (width <= 0) {
     blend_bins[0] = b, weights[0] = 1;
     return 1;
   }
-  const double x = b + u, h = alpha_blend;
+  const double x = b + u, h = width;
   int n = 0;
   double total = 0;
-  for (int j = std::max(0, b - alpha_blend); j <= std::min(bins() - 1, b + alpha_blend); ++j) {
+  for (int j = std::max(0, b - width); j <= std::min(bins() - 1, b + width); ++j) {
     const double k = 1 - std::abs(x - j - 0.5) / h;
     if (k <= 0) continue;
     blend_bins[n] = j, weights[n] = k, total += k, ++n;
@@ -168,6 +169,9 @@ std::string model_error(const StfModel& m) {
   if (!finite_in(m.once_fraction, 0, 1)) return "once-scattered fraction must be in [0, 1]";
   if (!m.alpha_tilt.empty() && int(m.alpha_tilt.size()) != bins) return "alpha tilts of the wrong count";
   if (m.alpha_blend < 0 || m.alpha_blend > StfModel::kMaxBlend) return "alpha blend out of range [0, 3]";
+  if (!m.alpha_blend_width.empty() && int(m.alpha_blend_width.size()) != bins) return "alpha blend widths of the wrong count";
+  for (int h : m.alpha_blend_width)
+    if (h < 0 || h > m.alpha_blend) return "alpha blend width out of range [0, alpha_blend]";
   for (double t : m.alpha_tilt)
     if (!finite_in(t, -kMaxTilt, kMaxTilt)) return "alpha tilt out of range [-40, 40]";
   if (!m.alpha_turn.empty() && int(m.alpha_turn.size()) != bins) return "alpha turns of the wrong count";

@@ -23,9 +23,11 @@ std::uint64_t fnv1a(const std::uint8_t* p, std::size_t n) {
 
 std::size_t pad4(std::size_t n) { return (n + 3) & ~std::size_t(3); }
 
-// Record flags: bit 0 hemispherical lobes, bits 1-2 the alpha blend (version 4 on), bit 3 a
-// turn per bin follows the tilts (version 5 on).
+// Record flags: bit 0 hemispherical lobes, bits 1-2 the alpha blend (version 4 on; the widest
+// where bins differ), bit 3 a turn per bin follows the tilts (version 5 on), bit 4 a blend
+// width per bin follows those (version 6 on).
 constexpr std::uint32_t kTurnsFlag = 8;
+constexpr std::uint32_t kBlendWidthsFlag = 16;
 
 // Float32 values per lobe: weight, kappa and the mean as (x, y, z) up to version 2, as its polar
 // and azimuthal angles since version 3 (a fifth smaller; float32 angles place a mean to ~1e-7
@@ -94,7 +96,8 @@ std::int64_t record_bytes(const StfModel& m, std::size_t name_bytes) {
   const int kind = m.kind == ModelKind::kVmf ? 0 : 1;
   const std::uint32_t size = kind == 0 ? std::uint32_t(m.lobes) : std::uint32_t(m.band_limit);
   const std::size_t per_bin = m.alpha_turn.empty() ? 8 : 12;  // probability, tilt, and turn when it turns
-  std::size_t n = 4 + 4 + pad4(name_bytes) + 6 * 4 + 8 * 8 + per_bin * std::size_t(m.bins()) + pad4(std::size_t(m.bins()));
+  const std::size_t widths = m.alpha_blend_width.empty() ? 0 : pad4(std::size_t(m.bins()));
+  std::size_t n = 4 + 4 + pad4(name_bytes) + 6 * 4 + 8 * 8 + per_bin * std::size_t(m.bins()) + pad4(std::size_t(m.bins())) + widths;
   return std::int64_t(n + 4 * parameter_count(kind, std::uint32_t(m.bins()), size, m.alpha_degree));
 }
 
@@ -112,7 +115,8 @@ std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries) {
     for (std::uint32_t v : {std::uint32_t(kind), bins, size, std::uint32_t(m.sh_nz)}) payload.put(v);
     payload.put(std::int32_t(m.alpha_degree));
     payload.put(std::uint32_t((m.hemispherical ? 1 : 0) | (std::uint32_t(m.alpha_blend) << 1) |
-                              (m.alpha_turn.empty() ? 0 : kTurnsFlag)));  // flags
+                              (m.alpha_turn.empty() ? 0 : kTurnsFlag) |
+                              (m.alpha_blend_width.empty() ? 0 : kBlendWidthsFlag)));  // flags
     for (double v : {m.tau, m.albedo, m.g, m.escape_probability, m.absorbed_fraction, m.truncated_fraction,
                      m.uncollided_fraction, m.once_fraction})
       payload.put(v);
@@ -121,6 +125,8 @@ std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries) {
     payload.align4();
     for (int b = 0; b < m.bins(); ++b) payload.put(float(m.tilt(b)));
     for (double r : m.alpha_turn) payload.put(float(r));
+    for (int h : m.alpha_blend_width) payload.put(std::uint8_t(h));
+    payload.align4();
     if (kind == 0) {
       for (const VmfLobe& l : m.vmf)
         for (double v : {l.weight, l.kappa, std::atan2(std::hypot(l.mean.x, l.mean.y), l.mean.z), std::atan2(l.mean.y, l.mean.x)})
@@ -169,8 +175,10 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
     return fail(error, "SH band limit, table size or alpha degree out of range");
   // Alpha probability, tilt from version 4, turn from version 5 where the flags say it turns.
   const bool turns = version >= 5 && (flags & kTurnsFlag);
+  const bool widths = version >= 6 && (flags & kBlendWidthsFlag);
   const std::size_t per_bin = turns ? 12 : version >= 4 ? 8 : 4;
   if (std::int64_t(record) != std::int64_t(4 + 4 + pad4(name_bytes) + 6 * 4 + doubles * 8 + per_bin * std::size_t(bins) + pad4(bins) +
+                                            (widths ? pad4(bins) : 0) +
                                             4 * parameter_count(int(kind), bins, size, kind == 1 ? degree : -1, version)))
     return fail(error, "model record size does not match its contents");
 
@@ -178,7 +186,7 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
   m.kind = kind == 0 ? ModelKind::kVmf : ModelKind::kSh;
   const std::uint32_t blend = (flags >> 1) & (version >= 5 ? 3u : ~0u);
   if ((version == 3 && flags > 1) || (version == 4 && blend > std::uint32_t(StfModel::kMaxBlend)) ||
-      (version >= 5 && flags > (kTurnsFlag | 7u)))
+      (version == 5 && flags > (kTurnsFlag | 7u)) || (version >= 6 && flags > (kBlendWidthsFlag | kTurnsFlag | 7u)))
     return fail(error, "unknown model flags");
   m.hemispherical = version >= 3 && kind == 0 && (flags & 1);
   m.alpha_blend = version >= 4 ? int(blend) : 0;
@@ -220,6 +228,12 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
     if (!(std::abs(turn) <= StfModel::kMaxTurn)) return fail(error, "alpha turn out of range");
     m.alpha_turn.push_back(turn);
   }
+  for (std::uint32_t b = 0; b < bins && widths; ++b) {
+    const int h = r.get<std::uint8_t>();
+    if (h > m.alpha_blend) return fail(error, "alpha blend width out of range");
+    m.alpha_blend_width.push_back(h);
+  }
+  if (widths) r.skip(pad4(bins) - bins);
   if (kind == 0) {
     m.lobes = int(size);
     for (std::size_t i = 0; i < std::size_t(bins) * size; ++i) {

@@ -81,6 +81,16 @@ std::vector<PackEntry> round_trip(const std::vector<PackEntry>& in) {
   return out;
 }
 
+// The error read_pack gives for a pack of this one model ("" where it loads).
+std::string read_error(const StfModel& m) {
+  const std::vector<std::uint8_t> bytes = write_pack({{"", m}});
+  std::vector<PackEntry> out;
+  std::string error;
+  const bool loaded = read_pack(bytes.data(), bytes.size(), out, error);
+  EXPECT_EQ(loaded, error.empty());
+  return error;
+}
+
 TEST(Pack, RoundTripKeepsModelsToFloatPrecision) {
   std::vector<PackEntry> in = {{"milk", test::make_vmf_model()}, {"", test::make_sh_model()}, {"h", test::make_vmf_model()}};
   in[2].model.hemispherical = true;
@@ -90,6 +100,8 @@ TEST(Pack, RoundTripKeepsModelsToFloatPrecision) {
   in[0].model.alpha_tilt = {-2.5, 1.0, 0.3, 0.0, -0.7, 4.0};
   in[0].model.uncollided_fraction = 0.1 * in[0].model.alpha_probability[0];
   in[2].model.alpha_turn = {1.5, -2.0, 3.0, 0.7, 1.0, -0.5};
+  in[2].model.alpha_blend = 2;
+  in[2].model.alpha_blend_width = {0, 2, 1, 2, 2, 0};
   std::vector<PackEntry> out = round_trip(in);
   ASSERT_EQ(out.size(), 3u);
   EXPECT_EQ(out[0].name, "milk");
@@ -97,12 +109,15 @@ TEST(Pack, RoundTripKeepsModelsToFloatPrecision) {
   EXPECT_FALSE(out[0].model.hemispherical);
   EXPECT_EQ(out[0].model.alpha_blend, 3);
   EXPECT_EQ(out[1].model.alpha_blend, 0);
+  EXPECT_TRUE(out[0].model.alpha_blend_width.empty());  // one width for every bin packs none
+  EXPECT_EQ(out[2].model.alpha_blend, 2);
+  EXPECT_EQ(out[2].model.alpha_blend_width, in[2].model.alpha_blend_width);
   ASSERT_EQ(out[0].model.alpha_tilt.size(), 6u);
   for (int b = 0; b < 6; ++b) EXPECT_NEAR(out[0].model.alpha_tilt[b], in[0].model.alpha_tilt[b], 1e-6);
   EXPECT_TRUE(out[0].model.alpha_turn.empty());  // a model that does not turn packs no turns
   ASSERT_EQ(out[2].model.alpha_turn.size(), 6u);
   for (int b = 0; b < 6; ++b) EXPECT_NEAR(out[2].model.alpha_turn[b], in[2].model.alpha_turn[b], 1e-6);
-  EXPECT_EQ(in[2].model.packed_bytes(), test::make_vmf_model().packed_bytes() + 6 * 4);
+  EXPECT_EQ(in[2].model.packed_bytes(), test::make_vmf_model().packed_bytes() + 6 * 4 + 8);  // turns, widths
   // One header; each record as packed_bytes() reports it, plus its name padded to 4 bytes.
   EXPECT_EQ(write_pack(in).size(),
             std::size_t(in[0].model.packed_bytes() + in[1].model.packed_bytes() + in[2].model.packed_bytes() - 64 + 4 + 4));
@@ -165,13 +180,24 @@ TEST(Pack, TurnsOfTheWrongCountOrOutOfRangeAreRefused) {
   EXPECT_EQ(model_error(m), "alpha turn out of range [-8, 8]");
   m.alpha_turn = {1, 1, 1, 1, -9, 1};
   EXPECT_EQ(model_error(m), "alpha turn out of range [-8, 8]");
-  const std::vector<std::uint8_t> bytes = write_pack({{"", m}});
-  std::vector<PackEntry> out;
-  std::string error;
-  EXPECT_FALSE(read_pack(bytes.data(), bytes.size(), out, error));
-  EXPECT_EQ(error, "model 0: alpha turn out of range");
+  EXPECT_EQ(read_error(m), "model 0: alpha turn out of range");
   m.alpha_turn[4] = 8;
   EXPECT_EQ(model_error(m), "");
+}
+
+// Blend widths per bin (StfModel::alpha_blend_width) are one per bin and none wider than
+// alpha_blend: checked when a model is built and when a pack is read.
+TEST(Pack, BlendWidthsOfTheWrongCountOrWiderThanTheBlendAreRefused) {
+  StfModel m = test::make_vmf_model();
+  m.alpha_blend = 2;
+  m.alpha_blend_width = {1, 2, 0};
+  EXPECT_EQ(model_error(m), "alpha blend widths of the wrong count");
+  m.alpha_blend_width = {1, 2, 0, 3, 2, 1};
+  EXPECT_EQ(model_error(m), "alpha blend width out of range [0, alpha_blend]");
+  EXPECT_EQ(read_error(m), "model 0: alpha blend width out of range");
+  m.alpha_blend_width[3] = 2;
+  EXPECT_EQ(model_error(m), "");
+  EXPECT_EQ(round_trip({{"", m}}).front().model.alpha_blend_width, m.alpha_blend_width);
 }
 
 TEST(Pack, RejectsForeignTruncatedAndCorruptedFiles) {

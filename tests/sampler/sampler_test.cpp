@@ -100,6 +100,14 @@ StfModel blended(StfModel m, int width = 1) {
   return m;
 }
 
+// Bins blended over widths of their own (StfModel::alpha_blend_width), none next to the widest.
+StfModel blended_by_bin(StfModel m) {
+  const int widths[] = {0, 3, 1, 2, 3, 0};
+  for (int b = 0; b < m.bins(); ++b) m.alpha_blend_width.push_back(widths[b % 6]);
+  m.alpha_blend = 3;
+  return m;
+}
+
 // Densities that turn about y with the exit angle inside their bins (StfModel::alpha_turn), some
 // against the exit point, one by 90 degrees across its bin.
 StfModel turned(StfModel m) {
@@ -142,7 +150,8 @@ TEST(Sampler, FullSampleMatchesPdfChiSquare) {
                                tilted(with_uncollided(test::make_vmf_model())), tilted(test::make_sh_model()),
                                blended(tilted(hemispherical(with_uncollided(test::make_vmf_model())))),
                                blended(test::make_sh_model()), blended(tilted(test::make_vmf_model()), 2),
-                               blended(tilted(test::make_vmf_model()), 3)}) {
+                               blended(tilted(test::make_vmf_model()), 3),
+                               blended_by_bin(tilted(hemispherical(with_uncollided(test::make_vmf_model()))))}) {
     ShellSampler s(model);
     const int bins = model.bins(), sub = 3, quarters = 4, n = 600000;
     AxisBins dir({0, 0, 1}, 2.0);
@@ -159,7 +168,7 @@ TEST(Sampler, FullSampleMatchesPdfChiSquare) {
       const double smooth = model.alpha_probability[b] - (b == 0 ? model.uncollided_fraction : 0);
       for (int k = 0; k < sub * quarters; ++k) {
         const double v0 = double(k / quarters) / sub, v1 = double(k / quarters + 1) / sub;
-        const int h = model.alpha_blend;
+        const int h = model.blend_width(b);
         auto hat = [&](int j, double v) {
           if (h == 0) return j == b ? 1.0 : 0.0;
           double total = 0;
@@ -262,7 +271,8 @@ TEST(Sampler, PdfIntegratesToOne) {
 TEST(Sampler, InversePdfRecoversTheMeasureOfRegions) {
   for (const StfModel& model : {test::make_vmf_model(), tilted(test::make_vmf_model()), blended(tilted(test::make_vmf_model())),
                                 blended(tilted(test::make_vmf_model()), 2), turned(tilted(test::make_vmf_model())),
-                                blended(turned(tilted(test::make_vmf_model())), 2)}) {
+                                blended(turned(tilted(test::make_vmf_model())), 2),
+                                blended_by_bin(turned(tilted(test::make_vmf_model())))}) {
     ShellSampler s(model);
     const StfModel& m = s.model();
     const double measure = 2 * kPi * (std::cos(m.alpha_edges[1]) - std::cos(m.alpha_edges[3])) * 2 * kPi;

@@ -48,11 +48,16 @@ struct StfModel {
   std::vector<double> alpha_tilt;
   // Blended bins (format version 4): at area fraction u of bin b, at x = b + u in bin units,
   // the smooth part's direction density is sum_j k_j p_j over the bins j with k_j = 1 - |x -
-  // j - 1/2| / h > 0, normalised to sum 1, h = alpha_blend. 0: no blending; 1: the densities
+  // j - 1/2| / h > 0, normalised to sum 1, h = blend_width(b). 0: no blending; 1: the densities
   // change linearly between neighbouring bin centres (at u = 1/2 the bin's own alone); 2, 3:
   // smoothed over more bins. blend_weights() gives the bins and weights.
   int alpha_blend = 0;
   static constexpr int kMaxBlend = 3;
+  // Widths per bin (format version 6): h = alpha_blend_width[b] in bin b, each at most
+  // alpha_blend (the widest). Near the axis of a forward medium the direction density changes
+  // its shape from bin to bin and wants little blending; far from it the bins are noisy and
+  // change slowly, and want much. Empty: every bin alpha_blend. blend_width() gives bin b's.
+  std::vector<int> alpha_blend_width;
   // Turning bins (format version 5): at exit angle alpha the direction density of bin j is the
   // bin's own turned about y by alpha_turn[j] * (alpha - centre of bin j), where the centre is
   // the middle of its alpha edges (turn_angle()): the forward peak turns with the exit point
@@ -96,6 +101,7 @@ struct StfModel {
   // The bins whose direction densities are blended at area fraction u of bin b, and their
   // weights (summing to 1); returns how many (at most 2 kMaxBlend + 1).
   int blend_weights(int b, double u, int* blend_bins, double* weights) const;
+  int blend_width(int b) const { return alpha_blend_width.empty() ? alpha_blend : alpha_blend_width[std::size_t(b)]; }
   // Shares of all escapes: the uncollided delta, and the smooth (fitted) part in alpha bin b.
   double uncollided_probability() const { return (1 - once_fraction) * uncollided_fraction; }
   double smooth_probability(int b) const {

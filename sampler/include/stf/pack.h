@@ -7,11 +7,15 @@
 //     u32 record bytes, u32 name bytes, name (UTF-8, no terminator),
 //     u32 kind (0 vmf, 1 sh), u32 bins, u32 lobes or band limit, u32 SH table nz,
 //     i32 alpha degree (-1: none), u32 flags (version >= 3; bit 0: hemispherical vMF lobes;
-//         bits 1-2 (version >= 4): the alpha blend width, 0-3; reserved before),
+//         bits 1-2 (version >= 4): the alpha blend width, 0-3, the widest where bins differ;
+//         bit 3 (version >= 5): alpha turns follow; bit 4 (version >= 6): blend widths follow;
+//         reserved before),
 //     f64 tau, albedo, g, escape probability, absorbed fraction, truncated fraction,
 //         uncollided fraction (version >= 2), once-scattered fraction (version >= 3),
 //     f32 alpha probability [bins], u8 bin status [bins] padded to 4 bytes,
 //     f32 alpha tilt [bins] (version >= 4; stf/tilt.h),
+//     f32 alpha turn [bins] (version >= 5 with flag bit 3),
+//     u8 alpha blend width [bins] padded to 4 bytes (version >= 6 with flag bit 4),
 //     vmf: f32 [bins * lobes * 4] (weight, kappa, mean's polar and azimuthal angle; up to
 //          version 2 f32 [bins * lobes * 5] (weight, kappa, mean x, y, z))
 //     sh:  f32 [bins * (L+1)^2], or with alpha degree D >= 0 f32 [(D+1) * (L+1)^2]
@@ -29,9 +33,10 @@ namespace stf {
 
 // Version 2 adds each model's uncollided fraction, version 3 its once-scattered fraction (after
 // the uncollided one), version 4 the alpha tilts and blend, version 5 the alpha turns (a flag and
-// one float per bin, only in models that turn); older packs still load (fractions, tilts and
-// turns 0).
-inline constexpr std::uint32_t kPackVersion = 5;
+// one float per bin, only in models that turn), version 6 a blend width per bin (a flag and one
+// byte per bin, only where the widths differ); older packs still load (fractions, tilts and
+// turns 0, one blend width for every bin).
+inline constexpr std::uint32_t kPackVersion = 6;
 
 struct PackEntry {
   std::string name;  // e.g. the medium's name in a scene; may be empty
