@@ -46,7 +46,7 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
     for (std::size_t i = 0; i < r.blend_heldout_nll.size(); ++i) s << (i ? ", " : "") << r.blend_heldout_nll[i];
     s << "], \"blend_heldout_nll_error\": [";
     for (std::size_t i = 0; i < r.blend_heldout_nll_error.size(); ++i) s << (i ? ", " : "") << r.blend_heldout_nll_error[i];
-    s << "], \"blend_by_bin_gain\": " << r.blend_by_bin_gain << ", \"blend_by_bin_error\": " << r.blend_by_bin_error;
+    s << "], \"blend_width\": " << r.blend_width << ", \"blend_by_bin_gain\": " << r.blend_by_bin_gain << ", \"blend_by_bin_error\": " << r.blend_by_bin_error;
     if (!m.alpha_blend_width.empty()) {
       s << ", \"alpha_blend_width\": [";
       for (std::size_t i = 0; i < m.alpha_blend_width.size(); ++i) s << (i ? ", " : "") << m.alpha_blend_width[i];

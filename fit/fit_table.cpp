@@ -676,6 +676,7 @@ TurnedNeighbours turned_neighbours(const BinFits& fits, const std::vector<BinTur
 
 struct BlendChoice {
   std::vector<double> nll, error;  // per width 0 .. max_width: held-out NLL, its SE against width 0
+  int width = 0;                   // one for every bin
   std::vector<int> widths;         // per bin; empty: none
   double by_bin_gain = 0, by_bin_error = 0;  // the widths by bin against one width: held-out gain, SE
 };
@@ -728,7 +729,8 @@ BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, int max_width, c
   std::vector<std::vector<double>> p(t.alpha_bins), q(t.alpha_bins);
   for (int b = 0; b < t.alpha_bins; ++b)
     for (double l : flat.log_p[b]) p[b].push_back(std::exp(l));
-  BlendChoice c{{flat.nll}, {0.0}, {}};
+  BlendChoice c;
+  c.nll = {flat.nll}, c.error = {0.0};
   std::vector<HeldOut> blended{flat};
   for (shape.alpha_blend = 1; shape.alpha_blend <= max_width; ++shape.alpha_blend) {
     for (int b = 0; b < t.alpha_bins; ++b)
@@ -739,11 +741,10 @@ BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, int max_width, c
     c.nll.push_back(blended.back().nll);
     c.error.push_back(difference_error(e, 1, blended.back(), flat));
   }
-  int width = 0;
   for (int w = 1; w <= max_width; ++w)
-    if (c.nll[std::size_t(w)] < c.nll[std::size_t(width)] && c.nll[0] - c.nll[std::size_t(w)] > kBlendStandardErrors * c.error[std::size_t(w)])
-      width = w;
-  const std::vector<int> one(std::size_t(t.alpha_bins), width), by_bin = widths_by_bin(blended);
+    if (c.nll[std::size_t(w)] < c.nll[std::size_t(c.width)] && c.nll[0] - c.nll[std::size_t(w)] > kBlendStandardErrors * c.error[std::size_t(w)])
+      c.width = w;
+  const std::vector<int> one(std::size_t(t.alpha_bins), c.width), by_bin = widths_by_bin(blended);
   const HeldOut at_one = scores_at_widths(blended, one), at_by_bin = scores_at_widths(blended, by_bin);
   c.by_bin_gain = at_one.nll - at_by_bin.nll;
   c.by_bin_error = difference_error(e, 1, at_by_bin, at_one);
@@ -898,6 +899,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
       BlendChoice c = choose_blend(seen, chosen_score, s.max_blend, turned);
       r.blend_heldout_nll = c.nll;
       r.blend_heldout_nll_error = c.error;
+      r.blend_width = c.width;
       r.blend_by_bin_gain = c.by_bin_gain;
       r.blend_by_bin_error = c.by_bin_error;
       blend_widths = c.widths;

@@ -111,8 +111,10 @@ struct FitReport {
   // auto: held-out NLL of the chosen size per blend width 0 .. kMaxBlend (StfModel::alpha_blend)
   std::vector<double> blend_heldout_nll;
   std::vector<double> blend_heldout_nll_error;  // and its standard error against width 0's
-  // auto: held-out NLL that widths chosen bin by bin (StfModel::alpha_blend_width) gain over the
-  // best single width, and its standard error; kept where the gain exceeds two of them.
+  // auto: the one width for every bin the held-out NLLs chose; the held-out NLL that widths
+  // chosen bin by bin (StfModel::alpha_blend_width) gain over it, and its standard error: the
+  // widths by bin are kept where the gain exceeds two of them.
+  int blend_width = 0;
   double blend_by_bin_gain = 0;
   double blend_by_bin_error = 0;
   // vmf/hvmf auto, when neighbour pooling was tried: the sizes and their held-out NLL fitted

@@ -234,11 +234,8 @@ TEST(FitTable, PoolsChosenBinByBinBringThinForwardTablesCloser) {
   EXPECT_LT(model.blend_width(0), model.blend_width(20));
   StfModel one_width = model;  // the single width the held-out half chose, for every bin
   one_width.alpha_blend_width.clear();
-  one_width.alpha_blend = 0;
-  for (int w = 1; w < int(r.blend_heldout_nll.size()); ++w)
-    if (r.blend_heldout_nll[w] < r.blend_heldout_nll[one_width.alpha_blend] &&
-        r.blend_heldout_nll[0] - r.blend_heldout_nll[w] > 2 * r.blend_heldout_nll_error[w])
-      one_width.alpha_blend = w;
+  one_width.alpha_blend = r.blend_width;
+  EXPECT_GT(r.blend_width, 0);
   const double tv_one_width = evaluate(one_width, reference).joint_tv;
   EXPECT_LT(tv_pooled, tv_one_width) << tv_pooled << " against " << tv_one_width;
 }
@@ -611,6 +608,10 @@ TEST(FitTable, StoreLoadRoundTripIsExact) {
     FitSettings settings = parse_model_spec(name.substr(0, name.find(' ')));
     if (name.find(' ') != std::string::npos) settings.alpha_degree = 5;
     StfModel m = fit_table(t, settings, &report);
+    if (name == "vmf:2") {  // widths of its own in every bin, as fits of thin forward media give
+      m.alpha_blend = 2;
+      for (int b = 0; b < m.bins(); ++b) m.alpha_blend_width.push_back(b % 3);
+    }
     Provenance provenance;
     provenance.model_spec = spec, provenance.source_table = "table.h5", provenance.table = &t;
     write_model(m, report, provenance, path);

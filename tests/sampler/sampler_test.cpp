@@ -100,7 +100,8 @@ StfModel blended(StfModel m, int width = 1) {
   return m;
 }
 
-// Bins blended over widths of their own (StfModel::alpha_blend_width), none next to the widest.
+// Bins blended over widths of their own (StfModel::alpha_blend_width); unblended bins next to
+// bins of the widest, whose hats reach into them.
 StfModel blended_by_bin(StfModel m) {
   const int widths[] = {0, 3, 1, 2, 3, 0};
   for (int b = 0; b < m.bins(); ++b) m.alpha_blend_width.push_back(widths[b % 6]);
