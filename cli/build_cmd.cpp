@@ -48,6 +48,9 @@ void run_build(const BuildOptions& o) {
   if (o.plan_only && !o.output.empty()) fail("-o and --plan-only exclude each other: --plan-only writes no pack");
   if (!o.plan_only && o.output.empty()) fail("-o must name the output pack (or use --plan-only)");
   const std::string cache = o.cache.empty() ? o.scene + ".cache" : o.cache;
+  if (o.json && o.output == "-") fail("--json and -o - would both write to stdout; give -o a file");
+  if (!o.output.empty() && inside_folder(o.output, cache))
+    fail("-o '" + o.output + "' is inside the cache '" + cache + "', which holds the tables and models the build reads; choose another folder");
   const int threads = int(parse_count(o.threads, "--threads", 0, 4096));
   scene::Plan plan = scene::make_plan(sc, cache);
   if (o.plan_only) {
@@ -85,7 +88,7 @@ void run_build(const BuildOptions& o) {
   if (!w.root()) return;
   // What was built, as the cache now holds it.
   scene::Plan built = scene::make_plan(sc, cache);
-  scene::write_scene_pack(sc, built, pack->temp_path());
+  pack->stage(bytes_of(scene::scene_pack(sc, built)));
   warn_unmet(built, o.strict);
   pack->commit();
   if (o.json) std::fputs(scene::plan_json(built).c_str(), stdout);

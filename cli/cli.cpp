@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <limits.h>
 #include <spawn.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -15,15 +16,50 @@
 #include <cstring>
 #include <filesystem>
 #include <iostream>
+#include <sstream>
+#include <toml.hpp>
+
+#include "files.h"
 
 namespace stf::cli {
 
 std::atomic<bool> interrupted{false};
+std::atomic<int> interrupt_signal{0};
 
 void fail(const std::string& message) { throw Error(message); }
 
+int interrupted_status() { return 128 + (interrupt_signal.load() ? interrupt_signal.load() : SIGINT); }
+
 void stop_if_interrupted() {
   if (interrupted) throw Interrupted();
+}
+
+void check_config_syntax(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    std::string a = argv[i], path;
+    if (a == "--config" && i + 1 < argc) path = argv[i + 1];
+    else if (a.rfind("--config=", 0) == 0) path = a.substr(9);
+    else continue;
+    if (::access(path.c_str(), R_OK) != 0) fail("--config '" + path + "': " + std::strerror(errno));
+    try {
+      (void)toml::parse(path);
+    } catch (const toml::syntax_error& e) {
+      // toml11's report: "[error] WHAT" on its first line, then the source with " N | " margins.
+      std::istringstream report(e.what());
+      std::string what, line, number;
+      std::getline(report, what);
+      if (what.rfind("[error] ", 0) == 0) what = what.substr(8);
+      while (number.empty() && std::getline(report, line)) {
+        std::size_t bar = line.find(" | ");
+        std::string head = bar == std::string::npos ? "" : line.substr(0, bar);
+        head.erase(0, head.find_first_not_of(' '));
+        if (!head.empty() && head.find_first_not_of("0123456789") == std::string::npos) number = head;
+      }
+      fail("--config '" + path + "'" + (number.empty() ? "" : ", line " + number) + ": not valid TOML: " + what);
+    } catch (const std::exception& e) {
+      fail("--config '" + path + "': " + e.what());
+    }
+  }
 }
 
 std::string tools_dir() {
@@ -70,12 +106,14 @@ void unregister_temp(const std::string& path) {
   }
 }
 
-void on_signal(int) {
+void on_signal(int signal) {
+  int none = 0;
+  interrupt_signal.compare_exchange_strong(none, signal);  // the first signal's, before the flag
   if (!interrupted.exchange(true)) return;
   // A second signal: the user insists. Leave nothing half-written behind.
   for (auto& slot : open_temps)
     if (const char* p = slot.load()) ::unlink(p);
-  ::_exit(130);
+  ::_exit(interrupted_status());
 }
 
 std::string folder_of(const std::string& path) {
@@ -113,18 +151,33 @@ bool same_file(const std::string& a, const std::string& b) {
   return canonical_name(follow_links(a, "")) == canonical_name(follow_links(b, ""));
 }
 
-// Temporary files `target.tmp-PID` of processes that no longer run (killed with SIGKILL, which
-// no handler sees) are removed when the same output is written again.
-void remove_orphans(const std::string& target) {
+// Files `PREFIX + PID` (and `PREFIX + PID + "-" ...`) in `folder` of processes that no longer
+// run (killed with SIGKILL, which no handler sees) are removed.
+void remove_orphans(const std::string& folder, const std::string& prefix) {
   namespace fs = std::filesystem;
-  const std::string prefix = fs::path(target).filename().string() + ".tmp-";
   std::error_code error;
-  for (const fs::directory_entry& e : fs::directory_iterator(folder_of(target), error)) {
+  for (const fs::directory_entry& e : fs::directory_iterator(folder, error)) {
     const std::string name = e.path().filename().string();
     if (name.rfind(prefix, 0) != 0) continue;
-    const std::string pid = name.substr(prefix.size());
-    if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos) continue;
+    const std::string rest = name.substr(prefix.size());
+    const std::string pid = rest.substr(0, rest.find('-'));
+    if (pid.empty() || pid.size() > 9 || pid.find_first_not_of("0123456789") != std::string::npos) continue;
     if (::kill(pid_t(std::stol(pid)), 0) != 0 && errno == ESRCH) fs::remove(e.path(), error);
+  }
+}
+
+// Opens a device or FIFO for writing without blocking in open(): a FIFO with no reader yet is
+// retried until one comes or Ctrl-C, which a blocked open() would not see.
+int open_in_place(const std::string& target, const std::string& path) {
+  for (;;) {
+    int fd = ::open(target.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd >= 0) {
+      ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+      return fd;
+    }
+    if (errno != ENXIO && errno != EINTR) fail("cannot open '" + path + "' for writing: " + std::strerror(errno));
+    stop_if_interrupted();
+    ::usleep(20000);
   }
 }
 
@@ -160,11 +213,58 @@ void require_files(const std::vector<NamedFile>& inputs) {
   }
 }
 
+bool inside_folder(const std::string& path, const std::string& folder) {
+  if (path == "-") return false;
+  char a[PATH_MAX], b[PATH_MAX];
+  const std::string target = follow_links(path, "");
+  return ::realpath(folder_of(target).c_str(), a) && ::realpath(folder.c_str(), b) && std::string(a) == std::string(b);
+}
+
 void refuse_same_file(const std::string& path, const std::string& option, const std::vector<NamedFile>& keep) {
   if (path == "-") return;
   for (const NamedFile& k : keep)
     if (!k.path.empty() && k.path != "-" && same_file(path, k.path))
       fail(option + " '" + path + "' is the same file as " + k.option + " '" + k.path + "'; refusing to overwrite it");
+}
+
+bool written_in_place(const std::string& path) {
+  if (path == "-") return true;
+  const std::string target = follow_links(path, "");
+  if (target.rfind("/proc/", 0) == 0 || target.rfind("/dev/fd/", 0) == 0) return true;
+  struct stat st;
+  return ::stat(target.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
+}
+
+OutputLock::OutputLock(const std::string& target, const std::string& option, const std::string& path)
+    : lock_(target + ".lock") {
+  for (int tries = 0; tries < 100; ++tries) {
+    fd_ = ::open(lock_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd_ < 0) fail(option + " '" + path + "' is not writable: " + std::strerror(errno));
+    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      ::close(fd_);
+      fd_ = -1;
+      fail(option + " '" + path + "' is being written by another stf process (it holds " + lock_ +
+           "); wait for it to finish or choose another output");
+    }
+    // The holder before us may have removed the file between our open and our lock: then the
+    // lock is on a name no one else sees, and we start again on the new file.
+    struct stat held, named;
+    if (::fstat(fd_, &held) == 0 && ::stat(lock_.c_str(), &named) == 0 && held.st_ino == named.st_ino &&
+        held.st_dev == named.st_dev) {
+      register_temp(lock_);
+      return;
+    }
+    ::close(fd_);
+    fd_ = -1;
+  }
+  fail(option + " '" + path + "': cannot take the lock " + lock_);
+}
+
+OutputLock::~OutputLock() {
+  if (fd_ < 0) return;
+  unregister_temp(lock_);
+  ::unlink(lock_.c_str());  // before the lock goes: a waiter then sees a new file, not this one
+  ::close(fd_);
 }
 
 AtomicOutput::AtomicOutput(std::string path, std::string option, const std::vector<NamedFile>& keep)
@@ -175,25 +275,25 @@ AtomicOutput::AtomicOutput(std::string path, std::string option, const std::vect
   struct stat st;
   const bool exists = path_ == "-" || ::stat(target_.c_str(), &st) == 0;
   if (exists && path_ != "-" && S_ISDIR(st.st_mode)) fail(option_ + " '" + path_ + "' is a folder; give a file name");
-  in_place_ = path_ == "-" || target_.rfind("/proc/", 0) == 0 || target_.rfind("/dev/fd/", 0) == 0 ||
-              (exists && !S_ISREG(st.st_mode));
+  in_place_ = written_in_place(path_);
+  if (exists && path_ != "-" && ::access(target_.c_str(), W_OK) != 0)
+    fail(option_ + " '" + path_ + "' is not writable: " + std::strerror(errno));
   if (in_place_) {
-    if (path_ != "-" && ::access(target_.c_str(), W_OK) != 0)
-      fail(option_ + " '" + path_ + "' is not writable: " + std::strerror(errno));
     temp_ = scratch_.emplace(option_).path();
     return;
   }
-  remove_orphans(target_);
+  lock_.emplace(target_, option_, path_);
+  remove_orphans(folder_of(target_), std::filesystem::path(target_).filename().string() + ".tmp-");
   temp_ = target_ + ".tmp-" + std::to_string(::getpid());
-  int fd = ::open(temp_.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0644);
+  int fd = ::open(temp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd < 0) {
     std::string why = std::strerror(errno);
     temp_.clear();
     fail(option_ + " '" + path_ + "' is not writable: " + why);
   }
+  register_temp(temp_);
   if (exists) ::fchmod(fd, st.st_mode & 07777);
   ::close(fd);
-  register_temp(temp_);
 }
 
 AtomicOutput::~AtomicOutput() {
@@ -204,11 +304,13 @@ AtomicOutput::~AtomicOutput() {
 
 ScratchFile::ScratchFile(const std::string& what) {
   const char* tmpdir = std::getenv("TMPDIR");
-  std::string pattern = std::string(tmpdir && *tmpdir ? tmpdir : "/tmp") + "/stf-XXXXXX";
+  const std::string folder = tmpdir && *tmpdir ? tmpdir : "/tmp";
+  remove_orphans(folder, "stf-");
+  std::string pattern = folder + "/stf-" + std::to_string(::getpid()) + "-XXXXXX";
   std::vector<char> name(pattern.begin(), pattern.end());
   name.push_back('\0');
   int fd = ::mkstemp(name.data());
-  if (fd < 0) fail(what + ": cannot create a temporary file in " + pattern + ": " + std::strerror(errno));
+  if (fd < 0) fail(what + ": cannot create a temporary file in " + folder + ": " + std::strerror(errno));
   ::close(fd);
   path_ = name.data();
   register_temp(path_);
@@ -220,18 +322,56 @@ ScratchFile::~ScratchFile() {
   ::unlink(path_.c_str());
 }
 
+void AtomicOutput::stage(std::string_view bytes) { write_durably(temp_, bytes, option_ + " '" + path_ + "'"); }
+
+void AtomicOutput::write(std::string_view bytes) {
+  stage(bytes);
+  commit();
+}
+
 void AtomicOutput::commit() {
   stop_if_interrupted();  // after Ctrl-C nothing is put in place, however far the work got
   if (in_place_) {
-    int fd = path_ == "-" ? STDOUT_FILENO : ::open(target_.c_str(), O_WRONLY);
-    if (fd < 0) fail("cannot open '" + path_ + "' for writing: " + std::strerror(errno));
+    int fd = path_ == "-" ? STDOUT_FILENO : open_in_place(target_, path_);
     copy_into(temp_, fd, path_);
-    if (fd != STDOUT_FILENO) ::close(fd);
-  } else if (std::rename(temp_.c_str(), target_.c_str()) != 0) {
-    fail("cannot move the finished output into place at '" + path_ + "': " + std::strerror(errno));
+    if (fd != STDOUT_FILENO && ::close(fd) != 0) fail("cannot write '" + path_ + "': " + std::strerror(errno));
+  } else {
+    sync_file(temp_, option_ + " '" + path_ + "'");
+    if (std::rename(temp_.c_str(), target_.c_str()) != 0)
+      fail("cannot move the finished output into place at '" + path_ + "': " + std::strerror(errno));
+    sync_folder_of(target_);
   }
   committed_ = true;
 }
+
+namespace {
+
+// A script's stderr, passed on line by line until a Python traceback starts; from there it is
+// held back, and only its last line (the exception) makes the one-line error.
+class ScriptErrors {
+ public:
+  void take(const char* bytes, std::size_t n) {
+    pending_.append(bytes, n);
+    for (std::size_t end; (end = pending_.find('\n')) != std::string::npos; pending_.erase(0, end + 1)) {
+      const std::string line = pending_.substr(0, end);
+      if (line.rfind("Traceback (most recent call last)", 0) == 0) held_ = true;
+      if (!held_) std::fprintf(stderr, "%s\n", line.c_str());
+      if (!line.empty()) last_ = line;
+    }
+  }
+  std::string last() const { return pending_.empty() ? last_ : pending_; }
+
+ private:
+  std::string pending_, last_;
+  bool held_ = false;
+};
+
+void drain(int fd, ScriptErrors& errors) {
+  char buf[4096];
+  for (ssize_t n; (n = ::read(fd, buf, sizeof buf)) > 0;) errors.take(buf, std::size_t(n));
+}
+
+}  // namespace
 
 void run_python(const std::string& script, const std::vector<std::string>& args, const std::string& what) {
   std::vector<std::string> words{"/usr/bin/python3", tools_dir() + "/" + script};
@@ -239,6 +379,12 @@ void run_python(const std::string& script, const std::vector<std::string>& args,
   std::vector<char*> argv;
   for (std::string& w : words) argv.push_back(w.data());
   argv.push_back(nullptr);
+  int pipe_fds[2];
+  if (::pipe2(pipe_fds, O_CLOEXEC) != 0) fail(what + ": cannot make a pipe: " + std::strerror(errno));
+  ::fcntl(pipe_fds[0], F_SETFL, O_NONBLOCK);
+  posix_spawn_file_actions_t files;
+  posix_spawn_file_actions_init(&files);
+  posix_spawn_file_actions_adddup2(&files, pipe_fds[1], STDERR_FILENO);
   // Its own process group: a terminal's Ctrl-C reaches only stf, which stops the script
   // quietly (no Python traceback) and cleans up.
   posix_spawnattr_t attr;
@@ -246,11 +392,18 @@ void run_python(const std::string& script, const std::vector<std::string>& args,
   posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP);
   posix_spawnattr_setpgroup(&attr, 0);
   pid_t pid;
-  int error = posix_spawn(&pid, argv[0], nullptr, &attr, argv.data(), environ);
+  int error = posix_spawn(&pid, argv[0], &files, &attr, argv.data(), environ);
   posix_spawnattr_destroy(&attr);
-  if (error != 0) fail(what + ": cannot run /usr/bin/python3: " + std::strerror(error));
+  posix_spawn_file_actions_destroy(&files);
+  ::close(pipe_fds[1]);
+  if (error != 0) {
+    ::close(pipe_fds[0]);
+    fail(what + ": cannot run /usr/bin/python3: " + std::strerror(error));
+  }
+  ScriptErrors errors;
   int status = 0;
   while (::waitpid(pid, &status, WNOHANG) == 0) {
+    drain(pipe_fds[0], errors);
     if (interrupted) {
       // The whole group: the script's own stf runs too, which would otherwise go on writing
       // into the folders the caller is about to remove. Each cleans up and exits; wait (a few
@@ -258,13 +411,16 @@ void run_python(const std::string& script, const std::vector<std::string>& args,
       ::kill(-pid, SIGTERM);
       ::waitpid(pid, &status, 0);
       for (int i = 0; i < 500 && ::kill(-pid, 0) == 0; ++i) ::usleep(10000);
+      ::close(pipe_fds[0]);
       throw Interrupted();
     }
     ::usleep(20000);
   }
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
-    fail(what + " failed (" + script + (WIFEXITED(status) ? " exited with status " + std::to_string(WEXITSTATUS(status))
-                                                         : std::string(" was killed")) + ")");
+  drain(pipe_fds[0], errors);
+  ::close(pipe_fds[0]);
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return;
+  const std::string why = WIFEXITED(status) ? " exited with status " + std::to_string(WEXITSTATUS(status)) : " was killed";
+  fail(what + " failed (" + script + why + ")" + (errors.last().empty() ? "" : ": " + errors.last()));
 }
 
 ProgressBar::ProgressBar(std::string label, bool quiet)

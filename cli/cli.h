@@ -4,11 +4,11 @@
 
 #include <atomic>
 #include <cstdint>
-#include <fstream>
 #include <optional>
 #include <stdexcept>
-#include <vector>
 #include <string>
+#include <string_view>
+#include <vector>
 
 namespace CLI {
 class App;
@@ -23,7 +23,8 @@ struct Error : std::runtime_error {
 };
 [[noreturn]] void fail(const std::string& message);
 
-// Ctrl-C or SIGTERM: main() prints the line and exits with status 130, as shells expect.
+// Ctrl-C or SIGTERM: main() prints the line and exits with status 128 + the signal (130 for
+// SIGINT, 143 for SIGTERM), as shells expect.
 struct Interrupted : Error {
   Interrupted() : Error("interrupted; nothing written") {}
 };
@@ -39,13 +40,20 @@ void stop_if_interrupted();
 std::int64_t parse_count(const std::string& text, const std::string& option, std::int64_t min,
                          std::int64_t max);
 
+// Checks the TOML syntax of a --config file before CLI11 reads it (CLI11 would take a broken
+// line for an unknown key); fails with one line naming the file, the line and what is wrong.
+void check_config_syntax(int argc, char** argv);
+
 // Folder of the Python drawing scripts: $STF_TOOLS_DIR, else the source tree's tools/.
 std::string tools_dir();
 
 // Set by the first SIGINT / SIGTERM once install_interrupt_handler() ran; long loops poll it
-// and stop cleanly. A second signal removes the temporary files of every open AtomicOutput
-// and ends the process at once (exit status 130).
+// and stop cleanly. A second signal removes the temporary files and locks of every open
+// AtomicOutput and ends the process at once. `interrupt_signal` is the first signal's number.
 extern std::atomic<bool> interrupted;
+extern std::atomic<int> interrupt_signal;
+// The exit status of an interrupted command: 128 + the first signal (130 for SIGINT).
+int interrupted_status();
 void install_interrupt_handler();
 
 // A file a command reads or writes, with the option that named it (for messages).
@@ -53,8 +61,9 @@ struct NamedFile {
   std::string path, option;
 };
 
-// A temporary file in $TMPDIR (default /tmp) for a command's own use, removed when it goes
-// out of scope (or by a second Ctrl-C).
+// A temporary file in $TMPDIR (default /tmp) for a command's own use, stf-PID-XXXXXX, removed
+// when it goes out of scope (or by a second Ctrl-C); those of processes that no longer run
+// (killed with SIGKILL) are removed when the next one is made.
 class ScratchFile {
  public:
   explicit ScratchFile(const std::string& what = "scratch");
@@ -67,27 +76,55 @@ class ScratchFile {
   std::string path_;
 };
 
+// One writer per output file: an advisory lock (flock) on TARGET.lock for the command's whole
+// life, so a second stf writing the same file (or its checkpoint) is refused at once instead of
+// mixing its temporaries with the first's. The lock file goes with its holder; one a killed
+// process left is taken over.
+class OutputLock {
+ public:
+  OutputLock(const std::string& target, const std::string& option, const std::string& path);
+  ~OutputLock();
+  OutputLock(const OutputLock&) = delete;
+  OutputLock& operator=(const OutputLock&) = delete;
+
+ private:
+  std::string lock_;
+  int fd_ = -1;
+};
+
+// True when `path` is written in place rather than replaced: "-" (standard output), a device,
+// a FIFO or a /proc or /dev/fd link.
+bool written_in_place(const std::string& path);
+
 // An output file that never clobbers what it must not, and never shows half a file.
 // A new or regular file is written under a temporary name in the folder of its final target
-// (symbolic links followed, so a link stays a link) and renamed into place on commit(), keeping
-// the old file's permissions; an existing file survives any failure. A device, a FIFO or "-"
-// (standard output) is never replaced: commit() copies the finished bytes into it. The
-// constructor, which runs before any work, refuses a folder, an unwritable place and a file
-// that is one of `keep` (the command's inputs and other outputs; the same file, not just the
-// same name), with one line naming `option`. The destructor removes the temporary file unless
-// committed.
+// (symbolic links followed, so a link stays a link), flushed to the device, and renamed into
+// place on commit(), keeping the old file's permissions; an existing file survives any failure,
+// a full disk included. A device, a FIFO or "-" (standard output) is never replaced: commit()
+// copies the finished bytes into it. The constructor, which runs before any work, takes the
+// output's lock and refuses a folder, an unwritable place or file and a file that is one of
+// `keep` (the command's inputs and other outputs; the same file, not just the same name), with
+// one line naming `option`. The destructor removes the temporary file unless committed.
 class AtomicOutput {
  public:
   AtomicOutput(std::string path, std::string option, const std::vector<NamedFile>& keep = {});
   ~AtomicOutput();
   AtomicOutput(const AtomicOutput&) = delete;
   AtomicOutput& operator=(const AtomicOutput&) = delete;
-  const std::string& temp_path() const { return temp_; }
   NamedFile named() const { return {path_, option_}; }
+  bool in_place() const { return in_place_; }
+  // Writes the whole file's bytes to the temporary (every step checked, one line naming the
+  // output and the system's reason on failure) and commits.
+  void write(std::string_view bytes);
+  // The same without the commit, for outputs that go into place together.
+  void stage(std::string_view bytes);
+  // For a writer that needs a path (a Python script): write the temporary, then commit().
+  const std::string& temp_path() const { return temp_; }
   void commit();
 
  private:
   std::string path_, option_, target_, temp_;
+  std::optional<OutputLock> lock_;
   std::optional<ScratchFile> scratch_;  // the temporary file of a device, FIFO or stdout
   bool in_place_ = false;  // device, FIFO or stdout: copy into it on commit
   bool committed_ = false;
@@ -97,18 +134,21 @@ class AtomicOutput {
 // where CLI11's own check would run before it reports an unknown option.)
 void require_files(const std::vector<NamedFile>& inputs);
 
+// True when the file `path` (which may not exist yet) lies in `folder` itself (links followed).
+bool inside_folder(const std::string& path, const std::string& folder);
+
 // Fails when `path` (an output) is the same file as one of `keep`.
 void refuse_same_file(const std::string& path, const std::string& option, const std::vector<NamedFile>& keep);
+
+// A byte vector (a pack, a PNG) as the bytes AtomicOutput takes.
+inline std::string_view bytes_of(const std::vector<std::uint8_t>& v) {
+  return {reinterpret_cast<const char*>(v.data()), v.size()};
+}
 
 // Writes `bytes` (a string or a byte vector) into an AtomicOutput and commits it.
 template <typename Bytes>
 void write_file(AtomicOutput& out, const Bytes& bytes) {
-  {
-    std::ofstream f(out.temp_path(), std::ios::binary);
-    f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
-    if (!f) fail("cannot write " + out.named().path);
-  }
-  out.commit();
+  out.write(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }
 
 // Runs `/usr/bin/python3 tools_dir()/SCRIPT ARGS...` in its own process group; Ctrl-C (the

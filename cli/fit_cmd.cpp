@@ -94,6 +94,7 @@ fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, cons
       !same(heldout.medium.g, table.medium.g) || heldout.max_scatter != table.max_scatter)
     fail("--heldout must be a table of the same medium (tau, albedo, g, --max-scatter)");
   fit::ToleranceFit r = fit::fit_to_tolerance(table, heldout, tolerance, settings);
+  stop_if_interrupted();  // a cancelled search has no result to state
   provenance.tolerance = tolerance, provenance.tv_bound = r.certificate.tv_bound, provenance.tolerance_met = r.met;
   provenance.heldout_table = o.heldout, provenance.heldout_paths = heldout.paths;
   provenance.fit_grid = r.fitted.grid;
@@ -153,10 +154,13 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
     model = tolerant->model, report = tolerant->report;
   }
   stop_if_interrupted();
-  fit::write_model(model, report, provenance, out.temp_path());
-  if (report_out) write_file(*report_out, report_json(report, model, o.model));
-  if (pack_out) write_file(*pack_out, write_pack({PackEntry{"", model}}));
+  // All staged first: a full disk leaves every old output as it was.
+  out.stage(fit::model_file(model, report, provenance));
+  if (report_out) report_out->stage(report_json(report, model, o.model));
+  if (pack_out) pack_out->stage(bytes_of(write_pack({PackEntry{"", model}})));
   out.commit();
+  if (report_out) report_out->commit();
+  if (pack_out) pack_out->commit();
   if (!o.quiet)
     std::fprintf(stderr, "stf fit: %s size %d in %.3g s, %lld bytes (table %lld bytes) -> %s\n", o.model.c_str(),
                  report.chosen_size, report.fit_time_s, (long long)model.packed_bytes(),
@@ -168,12 +172,14 @@ struct EvalOptions {
 };
 
 // `stf eval --cells`: the candidate's exit distribution in the reference's layout, with the
-// reference's alpha edges and grid, so that it can be compared or plotted cell by cell. Written
-// to the output's temporary file; run_eval commits it with the JSON.
+// reference's alpha edges and grid, so that it can be compared or plotted cell by cell. Staged
+// in the output's temporary file; run_eval commits it with the JSON.
 void write_cells(AtomicOutput& out, const EvalOptions& o, const Table& reference, const std::vector<double>& joint) {
+  std::string bytes;
   try {
     H5::Exception::dontPrint();
-    H5::H5File file(out.temp_path(), H5F_ACC_TRUNC);
+    h5::MemoryFile memory;
+    H5::H5File& file = memory.file();
     h5::put_attr(file, "format", std::string("stf-cells"));
     h5::put_attr(file, "format_version", 1);
     h5::put_attr(file, "candidate", o.candidate);
@@ -186,9 +192,13 @@ void write_cells(AtomicOutput& out, const EvalOptions& o, const Table& reference
     H5::Group grid = file.createGroup("/grid");
     h5::put_dataset(grid, "direction", {cells, 3}, reference.direction.front().data());
     h5::put_dataset(grid, "solid_angle", {cells}, reference.solid_angle.data());
+    escape.close();
+    grid.close();
+    bytes = memory.bytes();
   } catch (const H5::Exception& e) {
     fail("--cells: cannot write '" + o.cells + "': " + e.getDetailMsg());
   }
+  out.stage(bytes);
 }
 
 void run_eval(const EvalOptions& o) {

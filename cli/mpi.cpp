@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <vector>
 #endif
@@ -41,6 +42,17 @@ void finish_mpi() {
   int started = 0;
   MPI_Initialized(&started);
   if (started) MPI_Finalize();
+}
+
+bool same_command_on_every_rank(int argc, char** argv) {
+  if (the_world.size == 1) return true;
+  std::string line;
+  for (int i = 1; i < argc; ++i) line += std::string(argv[i]) + '\0';
+  // Two 64-bit hashes of the line, compared by their minimum and maximum over the ranks.
+  const std::uint64_t h = std::hash<std::string>{}(line), g = std::hash<std::string>{}(line + "stf");
+  std::uint64_t mine[4] = {h, g, ~h, ~g}, lowest[4] = {};
+  MPI_Allreduce(mine, lowest, 4, MPI_UINT64_T, MPI_MIN, MPI_COMM_WORLD);
+  return lowest[0] == h && lowest[1] == g && lowest[2] == ~h && lowest[3] == ~g;
 }
 
 bool any_rank(bool flag) {
@@ -124,6 +136,7 @@ World start_mpi(int&, char**&) {
   return the_world;
 }
 void finish_mpi() {}
+bool same_command_on_every_rank(int, char**) { return true; }
 bool any_rank(bool flag) { return flag; }
 void sum_to_root(Table&) {}
 

@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "cli.h"
+#include "files.h"
 #include "grid.h"
 #include "h5io.h"
 #include "evaluate.h"
@@ -86,9 +87,10 @@ void run_plot(const PlotOptions& o) {
   inputs.push_back({o.model, "--model"});
   AtomicOutput png(o.output, "-o", inputs);
   ScratchFile data;  // what the drawing script reads
+  H5::Exception::dontPrint();
+  h5::MemoryFile memory;
   {
-    H5::Exception::dontPrint();
-    H5::H5File file(data.path(), H5F_ACC_TRUNC);
+    H5::H5File& file = memory.file();
     const double alpha = o.alpha_deg * kPi / 180;
     for (std::size_t i = 0; i < o.tables.size(); ++i) {
       Table t = read_table(o.tables[i]);
@@ -119,6 +121,7 @@ void run_plot(const PlotOptions& o) {
                   describe(t, bin, "model " + o.model.substr(o.model.find_last_of('/') + 1)), o.width);
     }
   }
+  write_durably(data.path(), memory.bytes(), "the plot's data " + data.path());
   run_python("plot_directions.py", {data.path(), png.temp_path()}, "plotting");
   png.commit();
 }

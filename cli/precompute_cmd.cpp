@@ -6,6 +6,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <thread>
@@ -71,8 +72,35 @@ std::string checkpoint_path(const std::string& output) {
   return output + ".rank-" + std::to_string(world().rank) + "-of-" + std::to_string(world().size) + ".checkpoint";
 }
 
+// Checkpoints beside the output that a run on another number of processes left (OUT.checkpoint,
+// OUT.rank-R-of-N.checkpoint): --resume must be run as that run was, not start from nothing.
+std::string other_runs_checkpoint(const std::string& output, const std::string& mine) {
+  namespace fs = std::filesystem;
+  const fs::path out(output);
+  const std::string name = out.filename().string(), suffix = ".checkpoint";
+  auto is_checkpoint = [&](const std::string& f) {
+    if (f == name + suffix) return true;
+    return f.rfind(name + ".rank-", 0) == 0 && f.size() > suffix.size() &&
+           f.compare(f.size() - suffix.size(), suffix.size(), suffix) == 0;
+  };
+  std::error_code error;
+  for (const fs::directory_entry& e : fs::directory_iterator(out.has_parent_path() ? out.parent_path() : ".", error)) {
+    const std::string f = e.path().filename().string();
+    if (is_checkpoint(f) && f != fs::path(mine).filename().string()) return e.path().string();
+  }
+  return "";
+}
+
 // The state an earlier, killed run of the same command left, when --resume asks for it.
 std::optional<Progress> resumable(const PrecomputeOptions& o, const PrecomputeSettings& s, const std::string& path) {
+  if (written_in_place(o.output)) {
+    if (o.resume) fail("--resume needs -o to name a file: checkpoints are kept beside it");
+    return std::nullopt;
+  }
+  if (std::string other = other_runs_checkpoint(o.output, path); !other.empty() && !exists(path))
+    fail("checkpoint " + other + " is of a run on another number of MPI ranks; resume it with as many ranks (" +
+         (other.find(".rank-") == std::string::npos ? std::string("one process") : "mpirun -n N, N as in its name") +
+         "), or remove it");
   if (!exists(path)) {
     if (o.resume && !o.quiet && world().root()) std::fprintf(stderr, "stf precompute: no checkpoint %s; starting from the beginning\n", path.c_str());
     return std::nullopt;
@@ -116,14 +144,15 @@ void run_precompute(const PrecomputeOptions& o) {
   checkpointing.seconds = o.checkpoint_seconds;
   const std::string fingerprint = run_fingerprint(o.medium, s);
   bool warned = false;
-  checkpointing.save = [&](const Progress& p) {
-    try {
-      write_checkpoint(checkpoint, fingerprint, p);
-    } catch (const std::exception& e) {  // the run goes on; only its insurance failed
-      if (!warned) std::fprintf(stderr, "stf precompute: warning: %s\n", e.what());
-      warned = true;
-    }
-  };
+  if (!written_in_place(o.output))  // standard output or a device: no folder to keep them in
+    checkpointing.save = [&](const Progress& p) {
+      try {
+        write_checkpoint(checkpoint, fingerprint, p);
+      } catch (const std::exception& e) {  // the run goes on; only its insurance failed
+        if (!warned) std::fprintf(stderr, "stf precompute: warning: %s\n", e.what());
+        warned = true;
+      }
+    };
   ProgressBar bar("precompute", o.quiet || !world().root());
   auto table = precompute(o.medium, s, &interrupted,
                           [&](std::int64_t done, std::int64_t total, double seconds) { bar.update(done, total, seconds); },
@@ -138,8 +167,7 @@ void run_precompute(const PrecomputeOptions& o) {
   sum_to_root(*table);
   on_every_rank([&] {
     if (!world().root()) return;
-    write_table(*table, out->temp_path());
-    out->commit();
+    out->write(table_file(*table));
   });
   std::remove(checkpoint.c_str());  // the table holds it all now
   if (!o.quiet && world().root()) summarise(o, s, *table);
@@ -174,8 +202,7 @@ void run_merge(const MergeOptions& o) {
     add_part(whole, read_table(o.parts[order[i]]));
     stop_if_interrupted();
   }
-  write_table(whole, out.temp_path());
-  out.commit();
+  out.write(table_file(whole));
   if (!o.quiet)
     std::fprintf(stderr, "stf merge: %zu parts, %lld paths (chunks 0..%lld) -> %s\n", o.parts.size(),
                  (long long)whole.paths, (long long)whole.chunk_count - 1, o.output.c_str());

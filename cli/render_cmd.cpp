@@ -104,9 +104,10 @@ std::vector<PackEntry> read_pack_option(const std::string& path) {
 
 void write_image(AtomicOutput& out, const render::Image& image, const RenderOptions& o, std::int64_t spp,
                  std::int64_t seed) {
+  H5::Exception::dontPrint();
+  h5::MemoryFile memory;
   {
-    H5::Exception::dontPrint();
-    H5::H5File file(out.temp_path(), H5F_ACC_TRUNC);
+    H5::H5File& file = memory.file();
     h5::put_attr(file, "method", o.method);
     h5::put_attr(file, "spp", spp);
     h5::put_attr(file, "seed", seed);
@@ -120,7 +121,7 @@ void write_image(AtomicOutput& out, const render::Image& image, const RenderOpti
     h5::put_dataset(g, "mean", dims, image.mean.data());
     h5::put_dataset(g, "variance_of_mean", dims, image.variance_of_mean.data());
   }
-  out.commit();
+  out.write(memory.bytes());
 }
 
 std::string shortest(double x) {

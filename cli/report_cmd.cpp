@@ -16,6 +16,8 @@
 #include <sys/stat.h>
 
 #include "cli.h"
+#include "files.h"
+#include "precompute.h"
 #include "stf/pack.h"
 #include "stress.h"
 
@@ -46,14 +48,19 @@ std::string medium_json(const std::string& spec) {
     parts.push_back(spec.substr(start, colon - start));
   parts.push_back(spec.substr(start));
   if (parts.size() != 4) fail("--medium must be NAME:SIGMA_S:SIGMA_A:G, got '" + spec + "'");
+  if (parts[0].empty() || parts[0].find_first_of("\"\\") != std::string::npos)
+    fail("--medium '" + spec + "': the NAME must be a non-empty name without quotes or backslashes");
   char buf[512];
   try {
-    double s = std::stod(parts[1]), a = std::stod(parts[2]), g = std::stod(parts[3]);
-    if (!(s >= 0 && a >= 0 && s + a > 0 && g > -1 && g < 1)) throw std::invalid_argument("range");
+    std::size_t used[3] = {};
+    double s = std::stod(parts[1], &used[0]), a = std::stod(parts[2], &used[1]), g = std::stod(parts[3], &used[2]);
+    if (used[0] != parts[1].size() || used[1] != parts[2].size() || used[2] != parts[3].size())
+      throw std::invalid_argument("not a number");
+    if (!(s >= 0 && a >= 0 && s + a > 0 && s + a <= kMaxTau && g > -1 && g < 1)) throw std::invalid_argument("range");
     std::snprintf(buf, sizeof buf, "{\"name\": \"%s\", \"sigma_s\": %.17g, \"sigma_a\": %.17g, \"g\": %.17g}",
                   parts[0].c_str(), s, a, g);
   } catch (const std::exception&) {
-    fail("--medium '" + spec + "': need sigma_s, sigma_a >= 0 (not both 0) and g in (-1, 1)");
+    fail("--medium '" + spec + "': need numbers sigma_s, sigma_a >= 0 (not both 0, their sum at most 1e7: a unit-radius medium) and g in (-1, 1)");
   }
   return buf;
 }
@@ -134,13 +141,16 @@ void run_stress(const ReportOptions& o) {
   }
   if (failed) fail(std::to_string(failed) + " stress cases produced non-finite numbers");
   if (folder) {
-    std::ofstream(folder->work() + "/stress.md")
-        << "# Stiff and extreme sweep (400 paths, at most 20000 collisions each)\n\n```\n" << table << "```\n";
+    write_durably(folder->work() + "/stress.md",
+                  "# Stiff and extreme sweep (400 paths, at most 20000 collisions each)\n\n```\n" + table + "```\n",
+                  "-o '" + o.output + "' (stress.md)");
     folder->commit();
   }
 }
 
 void run_report(const ReportOptions& o) {
+  if (o.stress && (!o.media.empty() || !o.pack.empty() || o.full))
+    fail("--stress runs its own fixed sweep; it takes no pack, --medium or --full");
   if (o.stress) return run_stress(o);
   if (o.max_media < 1) fail("--max-media must be at least 1, got " + std::to_string(o.max_media));
   if (o.output.empty()) fail("-o must name the report folder");
@@ -151,13 +161,9 @@ void run_report(const ReportOptions& o) {
   refuse_same_file(o.output, "-o", {{o.pack, "the pack"}});
   ReportFolder folder(o.output);
   const std::string list = folder.work() + "/media.json";
-  {
-    std::ofstream f(list);
-    f << "[";
-    for (std::size_t i = 0; i < media.size(); ++i) f << (i ? ", " : "") << media[i];
-    f << "]\n";
-    if (!f) fail("-o '" + o.output + "': cannot write media.json");
-  }
+  std::string listed = "[";
+  for (std::size_t i = 0; i < media.size(); ++i) listed += (i ? ", " : "") + media[i];
+  write_durably(list, listed + "]\n", "-o '" + o.output + "' (media.json)");
   std::vector<std::string> args{"--stf", self_path(), "--media", list, "--out", folder.work()};
   if (o.full) args.push_back("--full");
   run_python("report.py", args, "report");

@@ -52,6 +52,12 @@ void run_pack(const PackOptions& o) {
   for (std::size_t i = 0; i < o.models.size(); ++i) {
     if (fit::file_format(o.models[i]) != "stf-model") fail("'" + o.models[i] + "' is not an stf model");
     entries.push_back({o.names.empty() ? "" : o.names[i], fit::read_model(o.models[i])});
+    for (std::size_t j = 0; j < i; ++j) {
+      const StfModel &a = entries[j].model, &b = entries[i].model;
+      if (entries[j].name == entries[i].name && a.tau == b.tau && a.albedo == b.albedo && a.g == b.g)
+        fail("'" + o.models[j] + "' and '" + o.models[i] + "' are models of one medium under one name ('" +
+             entries[i].name + "'); a renderer could not tell them apart: give each its own --name");
+    }
   }
   write_file(out, write_pack(entries));
 }
@@ -65,18 +71,18 @@ struct SampleOptions {
 // drawn samples.
 void write_samples(AtomicOutput& out, const std::vector<double>& point, const std::vector<double>& direction,
                    const std::vector<double>& pdf, const std::vector<std::int8_t>& component, double escape) {
+  H5::Exception::dontPrint();
+  h5::MemoryFile memory;
+  h5::put_attr(memory.file(), "escape_probability", escape);
   {
-    H5::Exception::dontPrint();
-    H5::H5File file(out.temp_path(), H5F_ACC_TRUNC);
-    h5::put_attr(file, "escape_probability", escape);
-    H5::Group g = file.createGroup("/samples");
+    H5::Group g = memory.file().createGroup("/samples");
     const hsize_t n = pdf.size();
     h5::put_dataset(g, "exit_point", {n, 3}, point.data());
     h5::put_dataset(g, "exit_direction", {n, 3}, direction.data());
     h5::put_dataset(g, "pdf", {n}, pdf.data());
     if (!component.empty()) h5::put_dataset(g, "component", {n}, component.data());
   }
-  out.commit();
+  out.write(memory.bytes());
 }
 
 // Exit points and directions of a samples file (`stf sample -o` layout) for --eval.
@@ -102,7 +108,8 @@ void read_points(const std::string& path, std::vector<double>& p, std::vector<do
 void run_sample(const SampleOptions& o, const CLI::App& cmd) {
   if (!o.eval.empty() && cmd.count("--count")) fail("--count and --eval exclude each other: --eval evaluates given points");
   if (!o.eval.empty() && cmd.count("--seed")) fail("--seed and --eval exclude each other: --eval draws nothing");
-  const std::int64_t n = parse_count(o.count, "--count", 1, std::int64_t(1) << 32);
+  // Every sample is held in memory (about 120 bytes with its file image) until the file is written.
+  const std::int64_t n = parse_count(o.count, "--count", 1, 50'000'000);
   std::uint64_t state = std::uint64_t(parse_count(o.seed, "--seed", 0, INT64_MAX));
   AtomicOutput out(o.output, "-o", {{o.model, "the model"}, {o.eval, "--eval"}});
   ShellSampler sampler(load_model(o.model));

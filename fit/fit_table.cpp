@@ -424,12 +424,15 @@ BinFits fit_bins(const Escapes& e, int half, ModelKind kind, int size, const Qua
     fits.lobes[b] = std::move(fit.lobes);
     fits.lobes[b].resize(size, VmfLobe{0, 0, {0, 0, 1}});
   });
-  std::vector<VmfLobe> uniform(size, VmfLobe{0, 0, {0, 0, 1}});
-  uniform[0].weight = 1;  // kappa 0: the uniform density
-  if (kind == ModelKind::kVmf) fill_borrowed(fits.status, fits.lobes, uniform);
-  std::vector<double> uniform_sh(sh_count(size), 0.0);
-  uniform_sh[0] = 1 / std::sqrt(4 * kPi);
-  if (kind == ModelKind::kSh) fill_borrowed(fits.status, fits.sh, uniform_sh);
+  if (kind == ModelKind::kVmf) {
+    std::vector<VmfLobe> uniform(size, VmfLobe{0, 0, {0, 0, 1}});
+    uniform[0].weight = 1;  // kappa 0: the uniform density
+    fill_borrowed(fits.status, fits.lobes, uniform);
+  } else {
+    std::vector<double> uniform_sh(sh_count(size), 0.0);  // sh:0 has the constant alone
+    uniform_sh[0] = 1 / std::sqrt(4 * kPi);
+    fill_borrowed(fits.status, fits.sh, uniform_sh);
+  }
   return fits;
 }
 
@@ -502,9 +505,6 @@ double difference_error(const Escapes& e, int half, const HeldOut& a, const Held
   }
   return std::sqrt(std::max(var, 0.0));
 }
-
-// Set when the user interrupted: partial fits must not be used.
-bool cancelled(const FitSettings& s) { return s.cancel && s.cancel->load(); }
 
 // SH smoothings tried on held-out data: with and without the Lanczos window, times heat
 // kernels from none to strong. A plain projection (no window, t = 0) is one of them, so a

@@ -4,6 +4,7 @@
 
 #include <stdexcept>
 
+#include "files.h"
 #include "h5io.h"
 #include "stf/sh.h"
 
@@ -14,116 +15,146 @@ namespace {
 // alpha tilts and blend, version 5 the alpha turns, version 6 blend widths per bin; older
 // versions still load (as fractions, tilts and turns 0, one blend width for every bin).
 constexpr int kFormatVersion = 6;
-}
+}  // namespace
 
 using namespace h5;
 
-void write_model(const StfModel& m, const FitReport& r, const Provenance& p, const std::string& path) {
+namespace {
+
+// The root attributes: the medium, the fractions and where the model came from.
+void put_header(H5::H5File& file, const StfModel& m, const FitReport& r, const Provenance& p) {
+  put_attr(file, "format", std::string("stf-model"));
+  put_attr(file, "format_version", kFormatVersion);
+  put_attr(file, "model", std::string(m.kind == ModelKind::kVmf ? "vmf" : "sh"));
+  put_attr(file, "model_spec", p.model_spec);
+  put_attr(file, "sigma_s", m.sigma_s);
+  put_attr(file, "sigma_a", m.sigma_a);
+  put_attr(file, "g", m.g);
+  put_attr(file, "radius", m.radius);
+  put_attr(file, "tau", m.tau);
+  put_attr(file, "albedo", m.albedo);
+  put_attr(file, "escape_probability", m.escape_probability);
+  put_attr(file, "absorbed_fraction", m.absorbed_fraction);
+  put_attr(file, "truncated_fraction", m.truncated_fraction);
+  put_attr(file, "uncollided_fraction", m.uncollided_fraction);
+  put_attr(file, "once_fraction", m.once_fraction);
+  put_attr(file, "hemispherical", int(m.hemispherical));
+  put_attr(file, "alpha_blend", m.alpha_blend);
+  put_attr(file, "fit_time_s", r.fit_time_s);
+  put_attr(file, "model_bytes", m.packed_bytes());
+  put_attr(file, "generator", std::string("stf " STF_VERSION));
+  put_attr(file, "source_table", p.source_table);
+  if (p.table) {
+    put_attr(file, "source_paths", p.table->paths);
+    put_attr(file, "source_seed", p.table->seed);
+    put_attr(file, "source_grid", p.table->grid);
+    put_attr(file, "source_generator", p.table->generator);
+    put_attr(file, "source_table_bytes", std::int64_t(p.table->alpha_bins) * p.table->cells * 4);
+  }
+  if (p.tolerance > 0) {
+    put_attr(file, "tolerance", p.tolerance);
+    put_attr(file, "tv_bound", p.tv_bound);
+    put_attr(file, "tolerance_met", int(p.tolerance_met));
+    put_attr(file, "fit_grid", p.fit_grid);
+    put_attr(file, "heldout_table", p.heldout_table);
+    put_attr(file, "heldout_paths", p.heldout_paths);
+  }
+}
+
+void put_alpha(H5::H5File& file, const StfModel& m) {
+  const hsize_t bins = hsize_t(m.bins());
+  H5::Group alpha = file.createGroup("/alpha");
+  put_dataset(alpha, "edges", {bins + 1}, m.alpha_edges.data());
+  put_dataset(alpha, "probability", {bins}, m.alpha_probability.data());
+  std::vector<std::int32_t> status(bins);
+  for (std::size_t b = 0; b < bins; ++b) status[b] = std::int32_t(m.status[b]);
+  put_dataset(alpha, "status", {bins}, status.data());
+  if (!m.alpha_tilt.empty()) put_dataset(alpha, "tilt", {bins}, m.alpha_tilt.data());
+  if (!m.alpha_turn.empty()) put_dataset(alpha, "turn", {bins}, m.alpha_turn.data());
+  if (!m.alpha_blend_width.empty()) {
+    const std::vector<std::int32_t> width(m.alpha_blend_width.begin(), m.alpha_blend_width.end());
+    put_dataset(alpha, "blend", {bins}, width.data());
+  }
+}
+
+void put_directions(H5::H5File& file, const StfModel& m, const FitReport& r) {
+  const hsize_t bins = hsize_t(m.bins());
+  if (m.kind == ModelKind::kVmf) {
+    H5::Group g = file.createGroup("/vmf");
+    put_attr(g, "lobes", m.lobes);
+    const hsize_t k = hsize_t(m.lobes);
+    std::vector<double> weight, kappa, mean;
+    for (const VmfLobe& l : m.vmf) {
+      weight.push_back(l.weight);
+      kappa.push_back(l.kappa);
+      mean.insert(mean.end(), {l.mean.x, l.mean.y, l.mean.z});
+    }
+    put_dataset(g, "weight", {bins, k}, weight.data());
+    put_dataset(g, "kappa", {bins, k}, kappa.data());
+    put_dataset(g, "mean", {bins, k, 3}, mean.data());
+  } else {
+    H5::Group g = file.createGroup("/sh");
+    put_attr(g, "band_limit", m.band_limit);
+    put_attr(g, "table_nz", m.sh_nz);
+    put_attr(g, "smoothing", r.smoothing);
+    put_attr(g, "window", std::string(r.lanczos_window ? "lanczos" : "none"));
+    put_dataset(g, "coefficients", {bins, hsize_t(sh_count(m.band_limit))}, m.sh.data());
+    put_attr(g, "alpha_degree", m.alpha_degree);
+    if (m.alpha_degree >= 0)
+      put_dataset(g, "chebyshev", {hsize_t(m.alpha_degree + 1), hsize_t(sh_count(m.band_limit))},
+                  m.sh_chebyshev.data());
+  }
+}
+
+void put_diagnostics(H5::H5File& file, const StfModel& m, const FitReport& r) {
+  const hsize_t bins = hsize_t(m.bins());
+  H5::Group d = file.createGroup("/diagnostics");
+  std::vector<double> escapes, deviance, chi2;
+  std::vector<std::int32_t> components;
+  for (const BinDiagnostics& b : r.bins) {
+    escapes.push_back(b.escapes);
+    deviance.push_back(b.deviance);
+    chi2.push_back(b.chi2_dof);
+    components.push_back(b.components);
+  }
+  put_dataset(d, "escapes", {bins}, escapes.data());
+  put_dataset(d, "deviance", {bins}, deviance.data());
+  put_dataset(d, "chi2_dof", {bins}, chi2.data());
+  put_dataset(d, "components", {bins}, components.data());
+  if (!r.candidates.empty()) {
+    H5::Group sel = file.createGroup("/selection");
+    put_attr(sel, "chosen", r.chosen_size);
+    std::vector<std::int32_t> cand(r.candidates.begin(), r.candidates.end());
+    const hsize_t n = cand.size();
+    put_dataset(sel, "candidates", {n}, cand.data());
+    put_dataset(sel, "heldout_nll", {n}, r.heldout_nll.data());
+    put_dataset(sel, "heldout_nll_error", {n}, r.heldout_nll_error.data());
+  }
+}
+
+void put_model(H5::H5File& file, const StfModel& m, const FitReport& r, const Provenance& p) {
+  put_header(file, m, r, p);
+  put_alpha(file, m);
+  put_directions(file, m, r);
+  put_diagnostics(file, m, r);
+}
+
+}  // namespace
+
+std::string model_file(const StfModel& m, const FitReport& r, const Provenance& p) {
   try {
     H5::Exception::dontPrint();
-    H5::H5File file(path, H5F_ACC_TRUNC);
-    put_attr(file, "format", std::string("stf-model"));
-    put_attr(file, "format_version", kFormatVersion);
-    put_attr(file, "model", std::string(m.kind == ModelKind::kVmf ? "vmf" : "sh"));
-    put_attr(file, "model_spec", p.model_spec);
-    put_attr(file, "sigma_s", m.sigma_s);
-    put_attr(file, "sigma_a", m.sigma_a);
-    put_attr(file, "g", m.g);
-    put_attr(file, "radius", m.radius);
-    put_attr(file, "tau", m.tau);
-    put_attr(file, "albedo", m.albedo);
-    put_attr(file, "escape_probability", m.escape_probability);
-    put_attr(file, "absorbed_fraction", m.absorbed_fraction);
-    put_attr(file, "truncated_fraction", m.truncated_fraction);
-    put_attr(file, "uncollided_fraction", m.uncollided_fraction);
-    put_attr(file, "once_fraction", m.once_fraction);
-    put_attr(file, "hemispherical", int(m.hemispherical));
-    put_attr(file, "alpha_blend", m.alpha_blend);
-    put_attr(file, "fit_time_s", r.fit_time_s);
-    put_attr(file, "model_bytes", m.packed_bytes());
-    put_attr(file, "generator", std::string("stf " STF_VERSION));
-    put_attr(file, "source_table", p.source_table);
-    if (p.table) {
-      put_attr(file, "source_paths", p.table->paths);
-      put_attr(file, "source_seed", p.table->seed);
-      put_attr(file, "source_grid", p.table->grid);
-      put_attr(file, "source_generator", p.table->generator);
-      put_attr(file, "source_table_bytes", std::int64_t(p.table->alpha_bins) * p.table->cells * 4);
-    }
-    if (p.tolerance > 0) {
-      put_attr(file, "tolerance", p.tolerance);
-      put_attr(file, "tv_bound", p.tv_bound);
-      put_attr(file, "tolerance_met", int(p.tolerance_met));
-      put_attr(file, "fit_grid", p.fit_grid);
-      put_attr(file, "heldout_table", p.heldout_table);
-      put_attr(file, "heldout_paths", p.heldout_paths);
-    }
-
-    const hsize_t bins = hsize_t(m.bins());
-    H5::Group alpha = file.createGroup("/alpha");
-    put_dataset(alpha, "edges", {bins + 1}, m.alpha_edges.data());
-    put_dataset(alpha, "probability", {bins}, m.alpha_probability.data());
-    std::vector<std::int32_t> status(bins);
-    for (std::size_t b = 0; b < bins; ++b) status[b] = std::int32_t(m.status[b]);
-    put_dataset(alpha, "status", {bins}, status.data());
-    if (!m.alpha_tilt.empty()) put_dataset(alpha, "tilt", {bins}, m.alpha_tilt.data());
-    if (!m.alpha_turn.empty()) put_dataset(alpha, "turn", {bins}, m.alpha_turn.data());
-    if (!m.alpha_blend_width.empty()) {
-      const std::vector<std::int32_t> width(m.alpha_blend_width.begin(), m.alpha_blend_width.end());
-      put_dataset(alpha, "blend", {bins}, width.data());
-    }
-
-    if (m.kind == ModelKind::kVmf) {
-      H5::Group g = file.createGroup("/vmf");
-      put_attr(g, "lobes", m.lobes);
-      const hsize_t k = hsize_t(m.lobes);
-      std::vector<double> weight, kappa, mean;
-      for (const VmfLobe& l : m.vmf) {
-        weight.push_back(l.weight);
-        kappa.push_back(l.kappa);
-        mean.insert(mean.end(), {l.mean.x, l.mean.y, l.mean.z});
-      }
-      put_dataset(g, "weight", {bins, k}, weight.data());
-      put_dataset(g, "kappa", {bins, k}, kappa.data());
-      put_dataset(g, "mean", {bins, k, 3}, mean.data());
-    } else {
-      H5::Group g = file.createGroup("/sh");
-      put_attr(g, "band_limit", m.band_limit);
-      put_attr(g, "table_nz", m.sh_nz);
-      put_attr(g, "smoothing", r.smoothing);
-      put_attr(g, "window", std::string(r.lanczos_window ? "lanczos" : "none"));
-      put_dataset(g, "coefficients", {bins, hsize_t(sh_count(m.band_limit))}, m.sh.data());
-      put_attr(g, "alpha_degree", m.alpha_degree);
-      if (m.alpha_degree >= 0)
-        put_dataset(g, "chebyshev", {hsize_t(m.alpha_degree + 1), hsize_t(sh_count(m.band_limit))},
-                    m.sh_chebyshev.data());
-    }
-
-    H5::Group d = file.createGroup("/diagnostics");
-    std::vector<double> escapes, deviance, chi2;
-    std::vector<std::int32_t> components;
-    for (const BinDiagnostics& b : r.bins) {
-      escapes.push_back(b.escapes);
-      deviance.push_back(b.deviance);
-      chi2.push_back(b.chi2_dof);
-      components.push_back(b.components);
-    }
-    put_dataset(d, "escapes", {bins}, escapes.data());
-    put_dataset(d, "deviance", {bins}, deviance.data());
-    put_dataset(d, "chi2_dof", {bins}, chi2.data());
-    put_dataset(d, "components", {bins}, components.data());
-    if (!r.candidates.empty()) {
-      H5::Group sel = file.createGroup("/selection");
-      put_attr(sel, "chosen", r.chosen_size);
-      std::vector<std::int32_t> cand(r.candidates.begin(), r.candidates.end());
-      const hsize_t n = cand.size();
-      put_dataset(sel, "candidates", {n}, cand.data());
-      put_dataset(sel, "heldout_nll", {n}, r.heldout_nll.data());
-      put_dataset(sel, "heldout_nll_error", {n}, r.heldout_nll_error.data());
-    }
+    MemoryFile memory;
+    put_model(memory.file(), m, r, p);
+    return memory.bytes();
   } catch (const H5::Exception& e) {
-    throw std::runtime_error("cannot write " + path + ": " + e.getDetailMsg());
+    throw std::runtime_error("cannot write a model: " + e.getDetailMsg());
   }
+}
+
+void write_model(const StfModel& m, const FitReport& r, const Provenance& p,
+                 const std::string& path) {
+  replace_file(path, model_file(m, r, p));
 }
 
 StfModel read_model(const std::string& path) {
@@ -137,7 +168,8 @@ StfModel read_model(const std::string& path) {
       throw std::runtime_error("unsupported model format_version " + std::to_string(version));
     StfModel m;
     std::string kind = get_string(file, "model");
-    if (kind != "vmf" && kind != "sh") throw std::runtime_error("unknown model kind '" + kind + "'");
+    if (kind != "vmf" && kind != "sh")
+      throw std::runtime_error("unknown model kind '" + kind + "'");
     m.kind = kind == "vmf" ? ModelKind::kVmf : ModelKind::kSh;
     m.sigma_s = get_double(file, "sigma_s");
     m.sigma_a = get_double(file, "sigma_a");
@@ -150,16 +182,22 @@ StfModel read_model(const std::string& path) {
     m.truncated_fraction = get_double(file, "truncated_fraction");
     if (version >= 2) m.uncollided_fraction = get_double(file, "uncollided_fraction");
     if (version >= 3) m.once_fraction = get_double(file, "once_fraction");
-    m.hemispherical = version >= 3 && has_attr(file, "hemispherical") && get_int(file, "hemispherical") != 0;
-    m.alpha_blend = version >= 4 && has_attr(file, "alpha_blend") ? get_int(file, "alpha_blend") : 0;
+    m.hemispherical =
+        version >= 3 && has_attr(file, "hemispherical") && get_int(file, "hemispherical") != 0;
+    m.alpha_blend =
+        version >= 4 && has_attr(file, "alpha_blend") ? get_int(file, "alpha_blend") : 0;
     m.alpha_probability = get_dataset(file, "/alpha/probability", {});
     const hsize_t bins = m.alpha_probability.size();
     m.alpha_edges = get_dataset(file, "/alpha/edges", {bins + 1});
-    for (std::int32_t s : get_int_dataset(file, "/alpha/status", {bins})) m.status.push_back(BinStatus(s));
-    if (version >= 4 && file.nameExists("/alpha/tilt")) m.alpha_tilt = get_dataset(file, "/alpha/tilt", {bins});
-    if (version >= 5 && file.nameExists("/alpha/turn")) m.alpha_turn = get_dataset(file, "/alpha/turn", {bins});
+    for (std::int32_t s : get_int_dataset(file, "/alpha/status", {bins}))
+      m.status.push_back(BinStatus(s));
+    if (version >= 4 && file.nameExists("/alpha/tilt"))
+      m.alpha_tilt = get_dataset(file, "/alpha/tilt", {bins});
+    if (version >= 5 && file.nameExists("/alpha/turn"))
+      m.alpha_turn = get_dataset(file, "/alpha/turn", {bins});
     if (version >= 6 && file.nameExists("/alpha/blend"))
-      for (std::int32_t h : get_int_dataset(file, "/alpha/blend", {bins})) m.alpha_blend_width.push_back(h);
+      for (std::int32_t h : get_int_dataset(file, "/alpha/blend", {bins}))
+        m.alpha_blend_width.push_back(h);
     if (m.kind == ModelKind::kVmf) {
       m.lobes = get_int(file.openGroup("/vmf"), "lobes");
       if (m.lobes < 1 || m.lobes > 64) throw std::runtime_error("vMF lobe count out of range");
@@ -178,14 +216,17 @@ StfModel read_model(const std::string& path) {
       m.sh = get_dataset(file, "/sh/coefficients", {bins, hsize_t(sh_count(m.band_limit))});
       m.alpha_degree = get_int(g, "alpha_degree");
       if (m.alpha_degree >= 0)
-        m.sh_chebyshev = get_dataset(file, "/sh/chebyshev", {hsize_t(m.alpha_degree + 1), hsize_t(sh_count(m.band_limit))});
+        m.sh_chebyshev = get_dataset(
+            file, "/sh/chebyshev", {hsize_t(m.alpha_degree + 1), hsize_t(sh_count(m.band_limit))});
       m.rebuild_sh_tables();
     }
-    if (std::string why = model_error(m); !why.empty()) throw std::runtime_error(path + ": " + why);
+    if (std::string why = model_error(m); !why.empty()) throw std::runtime_error(why);
     m.rebuild_lobe_norms();
     return m;
   } catch (const H5::Exception& e) {
     throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());
+  } catch (const std::runtime_error& e) {  // a missing attribute or dataset, a bad value
+    throw std::runtime_error(path + ": " + e.what());
   }
 }
 
@@ -213,9 +254,15 @@ ModelSummary read_model_summary(const std::string& path) {
 }
 
 std::vector<double> read_chi2_dof(const std::string& path) {
-  H5::Exception::dontPrint();
-  H5::H5File file(path, H5F_ACC_RDONLY);
-  return get_dataset(file, "/diagnostics/chi2_dof", {});
+  try {
+    H5::Exception::dontPrint();
+    H5::H5File file(path, H5F_ACC_RDONLY);
+    return get_dataset(file, "/diagnostics/chi2_dof", {});
+  } catch (const H5::Exception& e) {
+    throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(path + ": " + e.what());
+  }
 }
 
 std::string file_format(const std::string& path) {

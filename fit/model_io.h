@@ -35,6 +35,9 @@ struct ModelSummary {
   bool tolerance_met = false;
 };
 
+// The model as the bytes of its HDF5 file.
+std::string model_file(const StfModel& model, const FitReport& report, const Provenance& provenance);
+// Replaces `path` by the model's file (replace_file: an old file survives any failure).
 void write_model(const StfModel& model, const FitReport& report, const Provenance& provenance,
                  const std::string& path);
 // Reads a model written by write_model (format_version 2, or 1: no uncollided fraction); the

@@ -10,6 +10,9 @@
 
 namespace stf::fit {
 
+// Set when the user interrupted: for_each_bin skipped bins, so partial results must not be used.
+inline bool cancelled(const FitSettings& s) { return s.cancel && s.cancel->load(); }
+
 // Runs f(bin) for every bin over the settings' threads, until cancelled. Bins are
 // independent, so the result does not depend on the thread count.
 template <typename F>

@@ -130,7 +130,8 @@ namespace {
 
 // BinnedModel::bin of every reference bin, the smooth cell probabilities computed on the fit's
 // threads: once per model bin (a blended bin also draws on its neighbours'), or, where the
-// model turns, per slice of exit angle, in each model bin's own cache.
+// model turns, per slice of exit angle, in each model bin's own cache. Empty when cancelled:
+// the bins skipped then hold nothing.
 std::vector<std::pair<double, std::vector<double>>> binned_in_parallel(const StfModel& model, const BinnedModel& binned,
                                                                      const QuadratureLevels& levels,
                                                                      const FitSettings& settings) {
@@ -141,10 +142,12 @@ std::vector<std::pair<double, std::vector<double>>> binned_in_parallel(const Stf
       SmoothCellCache cache(model, levels);
       for (int a = j * f; a < (j + 1) * f; ++a) out[std::size_t(a)] = binned.bin(a, std::ref(cache));
     });
+    if (cancelled(settings)) out.clear();
     return out;
   }
   std::vector<std::vector<double>> cell_probability(bins);
   for_each_bin(bins, settings, [&](int j) { cell_probability[j] = smooth_cell_probabilities(model, j, levels); });
+  if (cancelled(settings)) return {};
   const auto cells_of = [&](int j, double) -> const std::vector<double>& { return cell_probability[std::size_t(j)]; };
   for (std::size_t a = 0; a < out.size(); ++a) out[a] = binned.bin(int(a), cells_of);
   return out;
@@ -174,6 +177,10 @@ Certificate certify(const StfModel& model, const Table& fit, const Table& h,
   // held-out escapes in cells the model calls empty from dominating the variance.
   const double floor = 1 / n_fit;
   const std::vector<std::pair<double, std::vector<double>>> in_h = binned_in_parallel(model, binned, levels, settings);
+  if (in_h.empty()) {  // cancelled: no bound
+    cert.tv_bound = std::numeric_limits<double>::infinity();
+    return cert;
+  }
   double chi2_var = 0, weight_sum = 0;
   for (int j = 0; j < bins; ++j) {
     for (int a = j * f; a < (j + 1) * f; ++a) {

@@ -1,6 +1,7 @@
 #include "h5io.h"
 
 #include <algorithm>
+#include <atomic>
 #include <stdexcept>
 
 namespace stf::h5 {
@@ -83,7 +84,33 @@ std::vector<T> get_array(const H5::H5File& file, const char* path,
   return data;
 }
 
+// Each memory file needs a name of its own while it is open.
+std::string memory_file_name() {
+  static std::atomic<long> count{0};
+  return "stf-memory-file-" + std::to_string(count++);
+}
+
+H5::FileAccPropList in_memory() {
+  H5::FileAccPropList props;
+  props.setCore(std::size_t(4) << 20, false);  // grows 4 MiB at a time, never backed by a file
+  return props;
+}
+
 }  // namespace
+
+MemoryFile::MemoryFile()
+    : file_(memory_file_name(), H5F_ACC_TRUNC, H5::FileCreatPropList::DEFAULT, in_memory()) {}
+
+std::string MemoryFile::bytes() {
+  file_.flush(H5F_SCOPE_LOCAL);
+  const ssize_t size = H5Fget_file_image(file_.getId(), nullptr, 0);
+  if (size < 0) throw std::runtime_error("cannot take the image of an HDF5 file in memory");
+  std::string image(std::size_t(size), '\0');
+  if (H5Fget_file_image(file_.getId(), image.data(), image.size()) != size)
+    throw std::runtime_error("cannot take the image of an HDF5 file in memory");
+  file_.close();
+  return image;
+}
 
 void put_attr(H5::H5Object& obj, const char* name, double value) {
   put_scalar(obj, name, H5::PredType::NATIVE_DOUBLE, value);

@@ -10,6 +10,21 @@
 
 namespace stf::h5 {
 
+// An HDF5 file built in memory (HDF5's core driver, no backing store). Its bytes reach the
+// disk only through one checked write (write_durably, replace_file): HDF5 never writes to disk
+// itself, so a full disk cannot leave it holding a file it failed to close, which crashes the
+// library when the process exits. Files are compressed, so the image is small beside the data.
+class MemoryFile {
+ public:
+  MemoryFile();
+  H5::H5File& file() { return file_; }
+  // The finished file's bytes; the file is closed then.
+  std::string bytes();
+
+ private:
+  H5::H5File file_;
+};
+
 void put_attr(H5::H5Object& obj, const char* name, double value);
 void put_attr(H5::H5Object& obj, const char* name, std::int64_t value);
 void put_attr(H5::H5Object& obj, const char* name, int value);

@@ -7,6 +7,7 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "files.h"
 #include "h5io.h"
 
 namespace stf {
@@ -58,11 +59,12 @@ std::string run_fingerprint(const Medium& m, const PrecomputeSettings& s) {
 
 void write_checkpoint(const std::string& path, const std::string& fingerprint, const Progress& p) {
   using namespace h5;
-  const std::string temp = path + ".tmp";
+  std::string bytes;
   try {
     H5::Exception::dontPrint();
     {
-      H5::H5File file(temp, H5F_ACC_TRUNC);
+      MemoryFile memory;
+      H5::H5File& file = memory.file();
       put_attr(file, "format", std::string("stf-checkpoint"));
       put_attr(file, "run", fingerprint);
       put_attr(file, "escaped", std::int64_t(p.tally.escaped));
@@ -80,12 +82,13 @@ void write_checkpoint(const std::string& path, const std::string& fingerprint, c
       put_rows(root, "counts", {2, bins, cells}, [&](hsize_t r) { return &p.tally.counts[r / bins][(r % bins) * cells]; });
       put_sparse_halves(root, "once", p.tally.alpha_bins, p.tally.cells, p.tally.once);
       put_rows(root, "multiple_sub", {2, bins, hsize_t(kSubBins)}, [&](hsize_t r) { return &p.tally.multiple_sub[r / bins][(r % bins) * kSubBins]; });
+      root.close();
+      bytes = memory.bytes();
     }
-    if (std::rename(temp.c_str(), path.c_str()) != 0) throw std::runtime_error("cannot rename " + temp);
   } catch (const H5::Exception& e) {
-    std::remove(temp.c_str());
     throw std::runtime_error("cannot write checkpoint " + path + ": " + e.getDetailMsg());
   }
+  replace_file(path, bytes);
 }
 
 Progress read_checkpoint(const std::string& path, const std::string& fingerprint, const ChunkRange& range,

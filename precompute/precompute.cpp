@@ -42,6 +42,10 @@ std::optional<std::string> validate(const Medium& m, const PrecomputeSettings& s
   if (s.paths < 1) return "--paths must be at least 1, got " + std::to_string(s.paths);
   if (s.parts < 1 || s.part < 0 || s.part >= s.parts)
     return "--shard K/N needs 0 <= K < N, got " + std::to_string(s.part) + "/" + std::to_string(s.parts);
+  if (const ChunkRange r = chunk_range(s); s.parts > 1 && r.last <= r.first)
+    return "--shard " + std::to_string(s.part) + "/" + std::to_string(s.parts) + " holds no paths: a run of " +
+           std::to_string(s.paths) + " paths has " + std::to_string(r.count) + " chunks, so N may be at most " +
+           std::to_string(r.count);
   if (s.threads < 0) return "--threads must be >= 0 (0: all cores), got " + std::to_string(s.threads);
   if (s.max_scatter < -1 || s.max_scatter > kSafetyMaxScatter)
     return "--max-scatter must be -1 (no limit) or in 0.." + std::to_string(kSafetyMaxScatter) +

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "files.h"
 #include "h5io.h"
 #include "stf/vec3.h"
 
@@ -71,10 +72,11 @@ std::map<std::uint64_t, double> get_sparse_halves(const H5::H5File& file, const 
   return values;
 }
 
-void write_table(const Table& t, const std::string& path) {
+std::string table_file(const Table& t) {
   try {
     H5::Exception::dontPrint();
-    H5::H5File file(path, H5F_ACC_TRUNC);
+    MemoryFile memory;
+    H5::H5File& file = memory.file();
     put_attr(file, "format", std::string("stf-table"));
     put_attr(file, "format_version", kFormatVersion);
     put_attr(file, "sigma_s", t.medium.sigma_s);
@@ -126,10 +128,15 @@ void write_table(const Table& t, const std::string& path) {
     H5::Group grid = file.createGroup("/grid");
     put_dataset(grid, "direction", {cells, 3}, t.direction.front().data());
     put_dataset(grid, "solid_angle", {cells}, t.solid_angle.data());
+    escape.close();
+    grid.close();
+    return memory.bytes();
   } catch (const H5::Exception& e) {
-    throw std::runtime_error("cannot write " + path + ": " + e.getDetailMsg());
+    throw std::runtime_error("cannot write a table: " + e.getDetailMsg());
   }
 }
+
+void write_table(const Table& t, const std::string& path) { replace_file(path, table_file(t)); }
 
 namespace {
 
@@ -182,10 +189,10 @@ std::string table_error(const Table& t) {
   double escaped = 0;
   for (const auto& half : t.weight_half)
     for (double w : half) {
-      if (!count(w)) return "/escape/weight holds a negative or non-finite weight";
+      if (!count(w)) return "/escape/weight_half holds a negative or non-finite weight";
       escaped += w;
     }
-  if (std::abs(escaped - t.escaped_weight) > 1e-9 * paths) return "/escape/weight does not sum to escaped_weight";
+  if (std::abs(escaped - t.escaped_weight) > 1e-9 * paths) return "/escape/weight_half does not sum to escaped_weight";
   for (double u : t.uncollided_half)
     if (!(u == -1 || (u >= 0 && u <= t.escaped_weight))) return "/escape/uncollided_half out of range";
   for (const auto& [key, w] : t.once) {
@@ -210,68 +217,113 @@ std::string table_error(const Table& t) {
   return "";
 }
 
+namespace {
+
+void read_header(const H5::H5File& file, Table& t) {
+  if (get_string(file, "format") != "stf-table")
+    throw std::runtime_error("not an stf table (format attribute is not 'stf-table')");
+  if (int v = get_int(file, "format_version"); v != kFormatVersion)
+    throw std::runtime_error("unsupported table format_version " + std::to_string(v));
+  t.medium = {get_double(file, "sigma_s"), get_double(file, "sigma_a"), get_double(file, "g"), get_double(file, "radius")};
+  t.paths = get_int64(file, "paths");
+  t.seed = get_int64(file, "seed");
+  t.max_scatter = get_int64(file, "max_scatter");
+  t.safety_cap = get_int64(file, "safety_cap");
+  t.grid = get_string(file, "grid");
+  t.escaped_weight = get_double(file, "escaped_weight");
+  t.absorbed_weight = get_double(file, "absorbed_weight");
+  t.truncated_weight = get_double(file, "truncated_weight");
+  t.collisions = get_int64(file, "collisions");
+  t.absorbed_collisions = has_attr(file, "absorbed_collisions") ? get_int64(file, "absorbed_collisions") : -1;
+  t.runtime_s = get_double(file, "runtime_s");
+  t.generator = get_string(file, "generator");
+  if (has_attr(file, "chunk_count")) {
+    t.chunk_first = get_int64(file, "chunk_first");
+    t.chunk_last = get_int64(file, "chunk_last");
+    t.chunk_count = get_int64(file, "chunk_count");
+    t.run_paths = get_int64(file, "run_paths");
+  }
+}
+
+// /escape/weight is the table; its halves must add up to it (whole numbers: exactly, up to the
+// rounding of weighted counts). Read row by row against the halves already read.
+void check_weight_against_halves(const H5::H5File& file, const Table& t) {
+  const hsize_t bins = hsize_t(t.alpha_bins), cells = hsize_t(t.cells);
+  std::vector<double> row(cells);
+  long current = -1;
+  auto check = [&] {
+    const std::size_t at = std::size_t(current) * cells;
+    for (hsize_t c = 0; c < cells; ++c) {
+      const double w = row[c], halves = t.weight_half[0][at + c] + t.weight_half[1][at + c];
+      const std::string where = " (alpha bin " + std::to_string(current) + ", cell " + std::to_string(c) + ": ";
+      if (!(std::isfinite(w) && w >= 0))
+        throw std::runtime_error("/escape/weight holds a negative or non-finite weight" + where + std::to_string(w) + ")");
+      if (std::abs(w - halves) > 1e-12 * (1 + w))
+        throw std::runtime_error("/escape/weight and /escape/weight_half disagree" + where + std::to_string(w) +
+                                 ", the halves sum to " + std::to_string(halves) + "); was the file changed?");
+    }
+  };
+  // get_rows hands out one row at a time: check the previous row before the next is read.
+  get_rows(file, "/escape/weight", {bins, cells}, [&](hsize_t b) {
+    if (current >= 0) check();
+    current = long(b);
+    return row.data();
+  });
+  if (current >= 0) check();
+}
+
+void read_escapes(const H5::H5File& file, Table& t) {
+  std::vector<hsize_t> dims = dataset_shape(file, "/escape/weight");
+  if (dims.size() != 2) throw std::runtime_error("/escape/weight is not 2D");
+  t.alpha_bins = int(dims[0]);
+  t.cells = std::int64_t(dims[1]);
+  for (auto& half : t.weight_half) half.resize(dims[0] * dims[1]);
+  get_rows(file, "/escape/weight_half", {2, dims[0], dims[1]},
+           [&](hsize_t r) { return &t.weight_half[r / dims[0]][(r % dims[0]) * dims[1]]; });
+  t.alpha_edges = get_dataset(file, "/escape/alpha_edges", {dims[0] + 1});
+  t.uncollided_half = {-1, -1};
+  if (file.nameExists("/escape/uncollided_half")) {
+    std::vector<double> u = get_dataset(file, "/escape/uncollided_half", {2});
+    t.uncollided_half = {u[0], u[1]};
+  }
+  t.once_tallied = file.nameExists("/escape/once_half");
+  if (t.once_tallied) t.once = get_sparse_halves(file, "/escape/once_half", t.alpha_bins, t.cells);
+  if (file.nameExists("/escape/multiple_sub_half")) {
+    std::vector<hsize_t> sub = dataset_shape(file, "/escape/multiple_sub_half");
+    if (sub.size() != 3 || sub[0] != 2 || sub[1] != dims[0] || sub[2] < 1 || sub[2] > 1024)
+      throw std::runtime_error("/escape/multiple_sub_half is not [2, alpha_bins, sub_bins]");
+    t.sub_bins = int(sub[2]);
+    for (auto& half : t.multiple_sub_half) half.resize(dims[0] * sub[2]);
+    get_rows(file, "/escape/multiple_sub_half", {2, dims[0], sub[2]},
+             [&](hsize_t r) { return &t.multiple_sub_half[r / dims[0]][(r % dims[0]) * sub[2]]; });
+  }
+}
+
+void read_grid(const H5::H5File& file, Table& t) {
+  const hsize_t cells = hsize_t(t.cells);
+  t.solid_angle = get_dataset(file, "/grid/solid_angle", {cells});
+  std::vector<double> dir = get_dataset(file, "/grid/direction", {cells, 3});
+  t.direction.resize(cells);
+  for (std::size_t i = 0; i < cells; ++i) t.direction[i] = {dir[3 * i], dir[3 * i + 1], dir[3 * i + 2]};
+}
+
+}  // namespace
+
 Table read_table(const std::string& path) {
   try {
     H5::Exception::dontPrint();
     H5::H5File file(path, H5F_ACC_RDONLY);
-    if (get_string(file, "format") != "stf-table")
-      throw std::runtime_error("not an stf table (format attribute is not 'stf-table')");
-    if (int v = get_int(file, "format_version"); v != kFormatVersion)
-      throw std::runtime_error("unsupported table format_version " + std::to_string(v));
     Table t;
-    t.medium = {get_double(file, "sigma_s"), get_double(file, "sigma_a"),
-                get_double(file, "g"), get_double(file, "radius")};
-    t.paths = get_int64(file, "paths");
-    t.seed = get_int64(file, "seed");
-    t.max_scatter = get_int64(file, "max_scatter");
-    t.safety_cap = get_int64(file, "safety_cap");
-    t.grid = get_string(file, "grid");
-    t.escaped_weight = get_double(file, "escaped_weight");
-    t.absorbed_weight = get_double(file, "absorbed_weight");
-    t.truncated_weight = get_double(file, "truncated_weight");
-    t.collisions = get_int64(file, "collisions");
-    t.absorbed_collisions = has_attr(file, "absorbed_collisions") ? get_int64(file, "absorbed_collisions") : -1;
-    t.runtime_s = get_double(file, "runtime_s");
-    t.generator = get_string(file, "generator");
-    if (has_attr(file, "chunk_count")) {
-      t.chunk_first = get_int64(file, "chunk_first");
-      t.chunk_last = get_int64(file, "chunk_last");
-      t.chunk_count = get_int64(file, "chunk_count");
-      t.run_paths = get_int64(file, "run_paths");
-    }
-
-    std::vector<hsize_t> dims = dataset_shape(file, "/escape/weight");
-    if (dims.size() != 2) throw std::runtime_error("/escape/weight is not 2D");
-    t.alpha_bins = int(dims[0]);
-    t.cells = std::int64_t(dims[1]);
-    for (auto& half : t.weight_half) half.resize(dims[0] * dims[1]);
-    get_rows(file, "/escape/weight_half", {2, dims[0], dims[1]},
-             [&](hsize_t r) { return &t.weight_half[r / dims[0]][(r % dims[0]) * dims[1]]; });
-    t.alpha_edges = get_dataset(file, "/escape/alpha_edges", {dims[0] + 1});
-    t.uncollided_half = {-1, -1};
-    if (file.nameExists("/escape/uncollided_half")) {
-      std::vector<double> u = get_dataset(file, "/escape/uncollided_half", {2});
-      t.uncollided_half = {u[0], u[1]};
-    }
-    t.once_tallied = file.nameExists("/escape/once_half");
-    if (t.once_tallied) t.once = get_sparse_halves(file, "/escape/once_half", t.alpha_bins, t.cells);
-    if (file.nameExists("/escape/multiple_sub_half")) {
-      std::vector<hsize_t> sub = dataset_shape(file, "/escape/multiple_sub_half");
-      if (sub.size() != 3 || sub[0] != 2 || sub[1] != dims[0] || sub[2] < 1 || sub[2] > 1024)
-        throw std::runtime_error("/escape/multiple_sub_half is not [2, alpha_bins, sub_bins]");
-      t.sub_bins = int(sub[2]);
-      for (auto& half : t.multiple_sub_half) half.resize(dims[0] * sub[2]);
-      get_rows(file, "/escape/multiple_sub_half", {2, dims[0], sub[2]},
-               [&](hsize_t r) { return &t.multiple_sub_half[r / dims[0]][(r % dims[0]) * sub[2]]; });
-    }
-    t.solid_angle = get_dataset(file, "/grid/solid_angle", {dims[1]});
-    std::vector<double> dir = get_dataset(file, "/grid/direction", {dims[1], 3});
-    t.direction.resize(dims[1]);
-    for (std::size_t i = 0; i < dims[1]; ++i) t.direction[i] = {dir[3 * i], dir[3 * i + 1], dir[3 * i + 2]};
-    if (std::string why = table_error(t); !why.empty()) throw std::runtime_error(path + ": " + why);
+    read_header(file, t);
+    read_escapes(file, t);
+    read_grid(file, t);
+    if (std::string why = table_error(t); !why.empty()) throw std::runtime_error(why);
+    check_weight_against_halves(file, t);
     return t;
   } catch (const H5::Exception& e) {
     throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(path + ": " + e.what());
   }
 }
 

@@ -81,7 +81,10 @@ void put_sparse_halves(H5::Group& group, const char* name, int bins, std::int64_
 std::map<std::uint64_t, double> get_sparse_halves(const H5::H5File& file, const char* path, int bins,
                                                   std::int64_t cells);
 
-// Writes `table` to `path` (replacing it). Throws std::runtime_error on failure.
+// The table as the bytes of its HDF5 file.
+std::string table_file(const Table& table);
+// Replaces `path` by the table's file (replace_file: an old file survives any failure).
+// Throws std::runtime_error on failure.
 void write_table(const Table& table, const std::string& path);
 // Why `t` is not a consistent table (values, not just shapes: non-finite or negative weights,
 // totals that do not add up, bad edges or cells), or empty when it is.

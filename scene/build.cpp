@@ -11,6 +11,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "files.h"
 #include "fit_table.h"
 #include "grid.h"
 #include "tolerance.h"
@@ -21,22 +22,6 @@
 namespace stf::scene {
 
 namespace {
-
-// Writes through `write(temp)` and renames into place: a cache holds whole files or none.
-template <typename Write>
-void write_atomically(const std::string& path, Write write) {
-  const std::string temp = path + ".tmp-" + std::to_string(::getpid());
-  try {
-    write(temp);
-  } catch (...) {
-    std::remove(temp.c_str());
-    throw;
-  }
-  if (std::rename(temp.c_str(), path.c_str()) != 0) {
-    std::remove(temp.c_str());
-    throw std::runtime_error("cannot move " + temp + " to " + path);
-  }
-}
 
 [[noreturn]] void interrupted() { throw std::runtime_error("interrupted; finished entries stay in the cache"); }
 
@@ -56,9 +41,10 @@ Table walk(const PlanEntry& e, const Settings& s, std::int64_t paths, std::int64
 
 void store(const Plan& plan, const PlanEntry& e, const Table& table, const StfModel& model, const fit::FitReport& report,
            fit::Provenance provenance) {
-  write_atomically(table_path(plan, e), [&](const std::string& p) { write_table(table, p); });
+  // Each file whole or not at all: a cache never holds half a table.
+  write_table(table, table_path(plan, e));
   provenance.source_table = table_path(plan, e);
-  write_atomically(model_path(plan, e), [&](const std::string& p) { fit::write_model(model, report, provenance, p); });
+  fit::write_model(model, report, provenance, model_path(plan, e));
 }
 
 // Paths of the first round: the certificate's own noise, 0.5 sqrt(2 sd(chi^2)) with
@@ -135,19 +121,19 @@ int compute_entries(const Plan& plan, int threads, const BuildProgress& progress
   return int(mine.size());
 }
 
-void write_scene_pack(const Scene& scene, const Plan& plan, const std::string& pack_path) {
+std::vector<std::uint8_t> scene_pack(const Scene& scene, const Plan& plan) {
   std::vector<PackEntry> pack;
   for (const Medium& m : scene.media)
     for (const PlanEntry& e : plan.entries) {  // entries of one medium are in increasing tau
       if (e.action == "skip" || std::find(e.media.begin(), e.media.end(), m.name) == e.media.end()) continue;
       pack.push_back({m.name, fit::read_model(model_path(plan, e))});
     }
-  std::vector<std::uint8_t> bytes = write_pack(pack);
-  write_atomically(pack_path, [&](const std::string& p) {
-    std::ofstream f(p, std::ios::binary);
-    f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
-    if (!f) throw std::runtime_error("cannot write " + p);
-  });
+  return write_pack(pack);
+}
+
+void write_scene_pack(const Scene& scene, const Plan& plan, const std::string& pack_path) {
+  const std::vector<std::uint8_t> bytes = scene_pack(scene, plan);
+  replace_file(pack_path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }
 
 int build(const Scene& scene, const Plan& plan, const std::string& pack_path, int threads, const BuildProgress& progress,

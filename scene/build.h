@@ -3,7 +3,9 @@
 
 #include <atomic>
 #include <functional>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include "plan.h"
 
@@ -24,6 +26,8 @@ int build(const Scene& scene, const Plan& plan, const std::string& pack_path, in
 // how many it computed; write_scene_pack packs the scene once every entry is cached.
 int compute_entries(const Plan& plan, int threads, const BuildProgress& progress = {},
                     const std::atomic<bool>* cancel = nullptr, int part = 0, int parts = 1);
+// The pack of the scene's cached entries, and the same written to `pack_path` (replace_file).
+std::vector<std::uint8_t> scene_pack(const Scene& scene, const Plan& plan);
 void write_scene_pack(const Scene& scene, const Plan& plan, const std::string& pack_path);
 
 }  // namespace stf::scene

@@ -82,4 +82,7 @@ def draw(panels_path, out_path):
 if __name__ == "__main__":
     if len(sys.argv) != 3:
         sys.exit("usage: plot_directions.py PANELS.h5 OUT.png")
-    draw(sys.argv[1], sys.argv[2])
+    try:
+        draw(sys.argv[1], sys.argv[2])
+    except OSError as e:  # a full disk: one line naming the file, for stf's error
+        sys.exit(f"cannot write {e.filename or sys.argv[2]}: {e.strerror or e}")

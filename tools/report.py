@@ -172,4 +172,7 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except OSError as e:  # a full disk: one line naming the file, for stf's error
+        sys.exit(f"cannot write {e.filename or 'the report'}: {e.strerror or e}")

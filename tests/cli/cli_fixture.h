@@ -64,6 +64,22 @@ class Cli : public ::testing::Test {
 
 inline const std::string kGood = "--sigma-s 2 --sigma-a 0.5 --g 0.3 --alpha-bins 6 --grid healpix:2 --paths 2000 --quiet";
 
+// The mpirun prefix for `ranks` ranks (as root, OpenMPI needs to be told it may run).
+inline std::string mpirun(int ranks) {
+  std::string cmd = "mpirun --oversubscribe -n " + std::to_string(ranks) + " ";
+  if (::geteuid() == 0) cmd += "--allow-run-as-root ";
+  return cmd;
+}
+
+// Whether stf was built with MPI and mpirun is there.
+inline bool have_mpi() {
+#ifdef STF_TEST_MPI
+  return std::system("mpirun --version >/dev/null 2>&1") == 0;
+#else
+  return false;
+#endif
+}
+
 // Runs stf with `args`, sends SIGINT after `ms` milliseconds; returns the exit status.
 inline int interrupt_after(std::vector<std::string> args, int ms) {
   pid_t pid = ::fork();

@@ -29,20 +29,6 @@ void expect_same_table(const std::string& a_path, const std::string& b_path) {
   EXPECT_FALSE(b.is_part());
 }
 
-std::string mpirun(int ranks) {
-  std::string cmd = "mpirun --oversubscribe -n " + std::to_string(ranks) + " ";
-  if (::geteuid() == 0) cmd += "--allow-run-as-root ";
-  return cmd;
-}
-
-bool have_mpi() {
-#ifdef STF_TEST_MPI
-  return std::system("mpirun --version >/dev/null 2>&1") == 0;
-#else
-  return false;
-#endif
-}
-
 class Scale : public Cli {
  protected:
   Result mpi_stf(int ranks, const std::string& args) {
