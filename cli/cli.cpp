@@ -151,21 +151,6 @@ bool same_file(const std::string& a, const std::string& b) {
   return canonical_name(follow_links(a, "")) == canonical_name(follow_links(b, ""));
 }
 
-// Files `PREFIX + PID` (and `PREFIX + PID + "-" ...`) in `folder` of processes that no longer
-// run (killed with SIGKILL, which no handler sees) are removed.
-void remove_orphans(const std::string& folder, const std::string& prefix) {
-  namespace fs = std::filesystem;
-  std::error_code error;
-  for (const fs::directory_entry& e : fs::directory_iterator(folder, error)) {
-    const std::string name = e.path().filename().string();
-    if (name.rfind(prefix, 0) != 0) continue;
-    const std::string rest = name.substr(prefix.size());
-    const std::string pid = rest.substr(0, rest.find('-'));
-    if (pid.empty() || pid.size() > 9 || pid.find_first_not_of("0123456789") != std::string::npos) continue;
-    if (::kill(pid_t(std::stol(pid)), 0) != 0 && errno == ESRCH) fs::remove(e.path(), error);
-  }
-}
-
 // Opens a device or FIFO for writing without blocking in open(): a FIFO with no reader yet is
 // retried until one comes or Ctrl-C, which a blocked open() would not see.
 int open_in_place(const std::string& target, const std::string& path) {

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "cli.h"
+#include "files.h"
 #include "mpi.h"
 #include "parts.h"
 #include "precompute.h"
@@ -136,6 +137,10 @@ void run_precompute(const PrecomputeOptions& o) {
   on_every_rank([&] {
     s = settings_of(o);
     if (world().root()) out.emplace(o.output, "-o");  // claimed before any work
+    if (!written_in_place(o.output)) {  // a killed run's half-saved checkpoint
+      const std::filesystem::path c(checkpoint);
+      remove_orphans(c.has_parent_path() ? c.parent_path().string() : ".", c.filename().string() + ".tmp-");
+    }
     resumed = resumable(o, s, checkpoint);
   });
 

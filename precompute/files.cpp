@@ -1,11 +1,13 @@
 #include "files.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <stdexcept>
 
 namespace stf {
@@ -66,7 +68,24 @@ void sync_folder_of(const std::string& path) {
   ::close(fd);
 }
 
+void remove_orphans(const std::string& folder, const std::string& prefix) {
+  namespace fs = std::filesystem;
+  std::error_code error;
+  for (const fs::directory_entry& e : fs::directory_iterator(folder, error)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind(prefix, 0) != 0) continue;
+    const std::string rest = name.substr(prefix.size());
+    const std::string pid = rest.substr(0, rest.find('-'));
+    if (pid.empty() || pid.size() > 9 || pid.find_first_not_of("0123456789") != std::string::npos)
+      continue;
+    if (::kill(pid_t(std::stol(pid)), 0) != 0 && errno == ESRCH) fs::remove(e.path(), error);
+  }
+}
+
 void replace_file(const std::string& path, std::string_view bytes) {
+  const std::filesystem::path target(path);
+  remove_orphans(target.has_parent_path() ? target.parent_path().string() : ".",
+                 target.filename().string() + ".tmp-");
   const std::string temp = path + ".tmp-" + std::to_string(::getpid());
   try {
     write_durably(temp, bytes, path);

@@ -19,9 +19,14 @@ void write_durably(const std::string& path, std::string_view bytes, const std::s
 void sync_file(const std::string& path, const std::string& name);
 
 // Replaces `path` by `bytes` through PATH.tmp-PID beside it, renamed into place only when all
-// of it is on the device; on any failure the temporary is removed and an existing file at
-// `path` is left as it was. Throws std::runtime_error naming `path` and the reason.
+// of it is on the device (orphaned temporaries of `path` removed first); on any failure the
+// temporary is removed and an existing file at `path` is left as it was. Throws std::runtime_error
+// naming `path` and the reason.
 void replace_file(const std::string& path, std::string_view bytes);
+
+// Removes the files PREFIX + PID (and PREFIX + PID + "-..." ) in `folder` whose process no
+// longer runs: temporaries a kill -9, which no handler sees, left behind.
+void remove_orphans(const std::string& folder, const std::string& prefix);
 
 // Flushes a folder's entries (a rename into it) to the device; best effort.
 void sync_folder_of(const std::string& path);

@@ -507,6 +507,13 @@ TEST_F(Fault, CornersOfOutputsAndModels) {
             0);
   EXPECT_TRUE(fs::is_empty(scratch));
 
+  // So do the temporaries of a killed run's output and checkpoint.
+  std::ofstream(out("v.h5.tmp-4194399")) << "left";
+  std::ofstream(out("v.h5.checkpoint.tmp-4194399")) << "left";
+  ASSERT_EQ(stf(kTable + "-o " + out("v.h5")).status, 0);
+  EXPECT_FALSE(fs::exists(out("v.h5.tmp-4194399")));
+  EXPECT_FALSE(fs::exists(out("v.h5.checkpoint.tmp-4194399")));
+
   std::ofstream(out("u.h5.rank-0-of-2.checkpoint")) << "x";
   Result one = stf(kTable + "--resume -o " + out("u.h5"));
   EXPECT_EQ(one.status, 2);
