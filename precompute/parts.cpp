@@ -80,7 +80,7 @@ void write_checkpoint(const std::string& path, const std::string& fingerprint, c
       put_dataset(root, "done", {hsize_t(done.size())}, done.data());
       const hsize_t bins = hsize_t(p.tally.alpha_bins), cells = hsize_t(p.tally.cells);
       put_rows(root, "counts", {2, bins, cells}, [&](hsize_t r) { return &p.tally.counts[r / bins][(r % bins) * cells]; });
-      put_sparse_halves(root, "once", p.tally.alpha_bins, p.tally.cells, p.tally.once);
+      put_sparse_halves(root, "once", p.tally.alpha_bins, p.tally.cells, p.tally.once.sorted());
       put_rows(root, "multiple_sub", {2, bins, hsize_t(kSubBins)}, [&](hsize_t r) { return &p.tally.multiple_sub[r / bins][(r % bins) * kSubBins]; });
       root.close();
       bytes = memory.bytes();
@@ -115,7 +115,7 @@ Progress read_checkpoint(const std::string& path, const std::string& fingerprint
     const hsize_t bins = hsize_t(alpha_bins);
     get_rows(file, "/counts", {2, bins, hsize_t(cells)},
              [&](hsize_t r) { return &p.tally.counts[r / bins][(r % bins) * std::size_t(cells)]; });
-    p.tally.once = get_sparse_halves(file, "/once", alpha_bins, cells);
+    p.tally.once.assign(get_sparse_halves(file, "/once", alpha_bins, cells));
     get_rows(file, "/multiple_sub", {2, bins, hsize_t(kSubBins)},
              [&](hsize_t r) { return &p.tally.multiple_sub[r / bins][(r % bins) * kSubBins]; });
     return p;

@@ -206,7 +206,7 @@ std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& 
   for (int h = 0; h < 2; ++h) table.weight_half[h] = std::move(tally.counts[h]);
   table.escaped_weight = double(tally.escaped);
   table.uncollided_half = {double(tally.uncollided[0]), double(tally.uncollided[1])};
-  table.once = std::move(tally.once);
+  table.once = tally.once.sorted();
   table.sub_bins = kSubBins;
   for (int h = 0; h < 2; ++h) table.multiple_sub_half[h] = std::move(tally.multiple_sub[h]);
   table.absorbed_weight = double(tally.absorbed);

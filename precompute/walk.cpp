@@ -16,6 +16,37 @@ Tally::Tally(int bins, std::int64_t n_cells) : cells(n_cells), alpha_bins(bins) 
   for (auto& m : multiple_sub) m.assign(std::size_t(bins) * kSubBins, 0);
 }
 
+void SparseCounts::add(std::uint64_t key, double count) {
+  if (2 * (used_ + 1) > keys_.size()) grow();
+  const std::size_t mask = keys_.size() - 1;
+  std::size_t slot = std::size_t((key * 0x9E3779B97F4A7C15ull) >> 24) & mask;
+  while (keys_[slot] != kEmpty && keys_[slot] != key) slot = (slot + 1) & mask;
+  if (keys_[slot] == kEmpty) keys_[slot] = key, ++used_;
+  counts_[slot] += count;
+}
+
+void SparseCounts::grow() {
+  std::vector<std::uint64_t> keys = std::move(keys_);
+  std::vector<double> counts = std::move(counts_);
+  keys_.assign(std::max<std::size_t>(64, 2 * keys.size()), kEmpty);
+  counts_.assign(keys_.size(), 0.0);
+  used_ = 0;
+  for (std::size_t i = 0; i < keys.size(); ++i)
+    if (keys[i] != kEmpty) add(keys[i], counts[i]);
+}
+
+std::map<std::uint64_t, double> SparseCounts::sorted() const {
+  std::map<std::uint64_t, double> out;
+  for (std::size_t i = 0; i < keys_.size(); ++i)
+    if (keys_[i] != kEmpty) out.emplace(keys_[i], counts_[i]);
+  return out;
+}
+
+void SparseCounts::assign(const std::map<std::uint64_t, double>& counts) {
+  keys_.clear(), counts_.clear(), used_ = 0;
+  for (const auto& [key, count] : counts) add(key, count);
+}
+
 void ChunkTally::add_to(Tally& tally) const {
   // A fine grid's table is far larger than the caches and escapes land at random cells: fetch
   // a few increments ahead so they do not each wait for memory.
@@ -26,7 +57,7 @@ void ChunkTally::add_to(Tally& tally) const {
     tally.counts[escapes[i] & 1][escapes[i] >> 1] += 1;
   }
   for (int h = 0; h < 2; ++h) tally.uncollided[h] += uncollided[h];
-  for (std::uint64_t i : once) tally.once[i] += 1;
+  for (std::uint64_t i : once) tally.once.add(i);
   for (std::uint32_t i : multiple_sub) tally.multiple_sub[i & 1][i >> 1] += 1;
   tally.escaped += escaped;
   tally.absorbed += absorbed;

@@ -49,6 +49,24 @@ class AlphaBins {
   std::vector<double> cos_edges_;  // decreasing, cos(pi b / n)
 };
 
+// Whole-number counts at sparse keys in one flat open-addressed table: an add is a probe or
+// two, where a std::map chased a dozen pointers (at tau ~1 a third of all escapes scattered
+// once, each an add). sorted() gives them ordered, as files store them.
+class SparseCounts {
+ public:
+  void add(std::uint64_t key, double count = 1);
+  std::map<std::uint64_t, double> sorted() const;
+  void assign(const std::map<std::uint64_t, double>& counts);
+  bool empty() const { return used_ == 0; }
+
+ private:
+  static constexpr std::uint64_t kEmpty = ~std::uint64_t(0);
+  void grow();
+  std::vector<std::uint64_t> keys_;
+  std::vector<double> counts_;
+  std::size_t used_ = 0;
+};
+
 // Tallies of one or more chunks: escapes per (half, alpha bin, cell) and event counts. Counts
 // are integers (held exactly in doubles, up to 2^53 per cell), so adding tallies in any order
 // gives the same table: the result does not depend on the number of threads or processes.
@@ -60,7 +78,7 @@ struct Tally {
   // Escapes after exactly one collision (in counts too), by table index 2 (bin cells + cell) +
   // half. Their directions lie in the plane y' = 0, so few cells hold any: a sparse map keeps
   // a fine grid's table at one dense copy.
-  std::map<std::uint64_t, double> once;
+  SparseCounts once;
   // Escapes after two or more collisions per half, [alpha_bins * kSubBins] (in counts too).
   std::vector<double> multiple_sub[2];
   std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0;
@@ -84,6 +102,7 @@ struct ChunkTally {
   std::uint64_t uncollided[2] = {0, 0};
   std::uint64_t escaped = 0, absorbed = 0, truncated = 0, collisions = 0, absorbed_collisions = 0;
 
+  // Adds the chunk to the shared tally (exact: whole numbers in any order).
   void add_to(Tally& tally) const;
   void clear();
 };

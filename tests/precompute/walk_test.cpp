@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 #include <numeric>
 
 #include "chi2.h"
@@ -402,3 +403,28 @@ TEST(AlphaBins, MatchesLinearBinsInAlpha) {
 
 }  // namespace
 }  // namespace stf
+
+namespace {
+
+// The walk's sparse once-scattered tally against a std::map: the same counts at the same keys
+// through growth and colliding probes, and back after assign().
+TEST(SparseCounts, CountsWhatAMapCounts) {
+  stf::SparseCounts counts;
+  std::map<std::uint64_t, double> reference;
+  std::uint64_t state = 7;
+  for (int i = 0; i < 200000; ++i) {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    const std::uint64_t key = (state >> 33) % 5000 * 1024;  // multiples of 1024: hashes that collide
+    counts.add(key);
+    reference[key] += 1;
+  }
+  EXPECT_EQ(counts.sorted(), reference);
+  stf::SparseCounts copy;
+  copy.assign(reference);
+  copy.add(3, 2);
+  reference[3] += 2;
+  EXPECT_EQ(copy.sorted(), reference);
+  EXPECT_TRUE(stf::SparseCounts().empty());
+}
+
+}  // namespace
