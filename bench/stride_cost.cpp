@@ -1,0 +1,127 @@
+// What a stride costs, in collisions: the `c` of the bound B / (C + c N) (docs/render.md).
+// In one run, on one thread:
+//  - per entry of a pack: ns per stride (ShellSampler::jump from a random point and heading)
+//    and ns per collision (one free flight and HG turn in a medium of that entry's albedo and
+//    g), and their ratio;
+//  - inside the render loop: stf render's scene (its medium given by the first entry's albedo
+//    and g, sigma_t 100, radius TAU / 100) brute force and in strides, the strided run's time
+//    split by least squares into its collisions and strides at the brute run's ns per
+//    collision.
+// JSON on stdout.
+//   stride_cost PACK [TAU] [SPP]
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include <stf/pack.h>
+#include <stf/sampler.h>
+
+#include "pixel_rng.h"
+#include "scene.h"
+#include "tracer.h"
+
+namespace {
+
+using stf::Vec3;
+using stf::render::PixelRng;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+// ns per jump through the entry's sphere; `sink` keeps the results alive.
+double ns_per_stride(const stf::ShellSampler& s, long n, double& sink) {
+  PixelRng rng(11, 0);
+  Vec3 x{0, 0, 0}, w{0, 0, 1};
+  const auto start = Clock::now();
+  for (long i = 0; i < n; ++i) {
+    const double u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform(), u3 = rng.uniform();
+    const stf::WorldExit e = s.jump(x, w, 1.0, u0, u1, u2, u3);
+    // The next stride starts where this one left: a chain, as in a renderer.
+    x = {e.point.x * 1e-3, e.point.y * 1e-3, e.point.z * 1e-3}, w = e.direction;
+  }
+  sink += x.x + w.y;
+  return 1e9 * seconds_since(start) / double(n);
+}
+
+// ns per collision of a medium of this albedo and g (a sphere too large to leave).
+double ns_per_collision(double albedo, double g, long n, double& sink) {
+  stf::Medium m;
+  m.sigma_s = albedo, m.sigma_a = 1 - albedo, m.g = g, m.radius = 1e9;
+  const stf::render::CollisionWalk walk(m);
+  PixelRng rng(13, 0);
+  Vec3 x{0, 0, 0}, w{0, 0, 1};
+  double throughput = 1;
+  const auto start = Clock::now();
+  for (long i = 0; i < n; ++i) {
+    walk.leaves_after_flight(x, w, throughput, rng);
+    if (throughput < 1e-200) throughput = 1;
+  }
+  sink += x.x + throughput;
+  return 1e9 * seconds_since(start) / double(n);
+}
+
+struct LoopRun {
+  double seconds = 0, collisions = 0, strides = 0;
+};
+
+// Every pixel of a 64 x 64 image, `spp` paths each, through `method`.
+LoopRun render_loop(const stf::Medium& m, const stf::render::Method& method, int spp, double& sink) {
+  LoopRun run;
+  stf::render::PathCounters counters;
+  const auto start = Clock::now();
+  for (int p = 0; p < 64 * 64; ++p) {
+    PixelRng rng(5, std::uint64_t(p));
+    for (int s = 0; s < spp; ++s) {
+      const stf::render::Ray ray = stf::render::camera_ray(p % 64 + rng.uniform(), p / 64 + rng.uniform(), 64, 64, m.radius);
+      Vec3 entry;
+      if (stf::render::enter_sphere(ray, m.radius, entry)) sink += method.radiance(entry, ray.direction, rng, counters);
+    }
+  }
+  run.seconds = seconds_since(start);
+  run.collisions = double(counters.collisions), run.strides = double(counters.strides);
+  return run;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::fprintf(stderr, "usage: stride_cost PACK [TAU] [SPP]\n");
+    return 2;
+  }
+  std::vector<stf::PackEntry> pack;
+  std::string error;
+  if (!stf::read_pack_file(argv[1], pack, error) || pack.empty()) {
+    std::fprintf(stderr, "stride_cost: %s: %s\n", argv[1], error.empty() ? "no entry" : error.c_str());
+    return 2;
+  }
+  const double tau = argc > 2 ? std::atof(argv[2]) : 100;
+  const int spp = argc > 3 ? std::atoi(argv[3]) : 64;
+  double sink = 0;
+  std::printf("{\"entries\": [\n");
+  for (std::size_t i = 0; i < pack.size(); ++i) {
+    const stf::StfModel& model = pack[i].model;
+    const stf::ShellSampler sampler(model);
+    const double stride = ns_per_stride(sampler, 2'000'000, sink);
+    const double collision = ns_per_collision(model.albedo, model.g, 10'000'000, sink);
+    std::printf("  {\"tau\": %g, \"albedo\": %.6g, \"g\": %g, \"ns_per_stride\": %.1f, \"ns_per_collision\": %.1f, "
+                "\"stride_cost_collisions\": %.2f}%s\n",
+                model.tau, model.albedo, model.g, stride, collision, stride / collision, i + 1 < pack.size() ? "," : "");
+  }
+  stf::Medium m;
+  m.sigma_s = 100 * pack.front().model.albedo, m.sigma_a = 100 - m.sigma_s, m.g = pack.front().model.g;
+  m.radius = tau / 100;
+  const stf::render::BruteForce brute(m);
+  const stf::render::ShellStrides strided(m, pack);
+  const LoopRun b = render_loop(m, brute, spp, sink), s = render_loop(m, strided, spp, sink);
+  const double ns_collision = 1e9 * b.seconds / b.collisions;
+  const double ns_stride = s.strides > 0 ? (1e9 * s.seconds - ns_collision * s.collisions) / s.strides : 0;
+  std::printf("], \"render_loop\": {\"tau\": %g, \"spheres\": %d, \"spp\": %d, \"brute_seconds\": %.3f, "
+              "\"brute_collisions\": %.0f, \"stf_seconds\": %.3f, \"stf_collisions\": %.0f, \"stf_strides\": %.0f, "
+              "\"ns_per_collision\": %.1f, \"ns_per_stride\": %.1f, \"stride_cost_collisions\": %.2f}, \"sink\": %g}\n",
+              tau, strided.spheres(), spp, b.seconds, b.collisions, s.seconds, s.collisions, s.strides, ns_collision,
+              ns_stride, ns_stride / ns_collision, sink);
+  return 0;
+}
