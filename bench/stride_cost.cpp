@@ -9,14 +9,14 @@
 //    collision.
 // JSON on stdout.
 //   stride_cost PACK [TAU] [SPP]
+#include <stf/pack.h>
+#include <stf/sampler.h>
+
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
 #include <vector>
-
-#include <stf/pack.h>
-#include <stf/sampler.h>
 
 #include "pixel_rng.h"
 #include "scene.h"
@@ -28,7 +28,9 @@ using stf::Vec3;
 using stf::render::PixelRng;
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
 
 // ns per jump through the entry's sphere; `sink` keeps the results alive.
 double ns_per_stride(const stf::ShellSampler& s, long n, double& sink) {
@@ -67,16 +69,19 @@ struct LoopRun {
 };
 
 // Every pixel of a 64 x 64 image, `spp` paths each, through `method`.
-LoopRun render_loop(const stf::Medium& m, const stf::render::Method& method, int spp, double& sink) {
+LoopRun render_loop(const stf::Medium& m, const stf::render::Method& method, int spp,
+                    double& sink) {
   LoopRun run;
   stf::render::PathCounters counters;
   const auto start = Clock::now();
   for (int p = 0; p < 64 * 64; ++p) {
     PixelRng rng(5, std::uint64_t(p));
     for (int s = 0; s < spp; ++s) {
-      const stf::render::Ray ray = stf::render::camera_ray(p % 64 + rng.uniform(), p / 64 + rng.uniform(), 64, 64, m.radius);
+      const stf::render::Ray ray =
+          stf::render::camera_ray(p % 64 + rng.uniform(), p / 64 + rng.uniform(), 64, 64, m.radius);
       Vec3 entry;
-      if (stf::render::enter_sphere(ray, m.radius, entry)) sink += method.radiance(entry, ray.direction, rng, counters);
+      if (stf::render::enter_sphere(ray, m.radius, entry))
+        sink += method.radiance(entry, ray.direction, rng, counters);
     }
   }
   run.seconds = seconds_since(start);
@@ -94,7 +99,8 @@ int main(int argc, char** argv) {
   std::vector<stf::PackEntry> pack;
   std::string error;
   if (!stf::read_pack_file(argv[1], pack, error) || pack.empty()) {
-    std::fprintf(stderr, "stride_cost: %s: %s\n", argv[1], error.empty() ? "no entry" : error.c_str());
+    std::fprintf(stderr, "stride_cost: %s: %s\n", argv[1],
+                 error.empty() ? "no entry" : error.c_str());
     return 2;
   }
   const double tau = argc > 2 ? std::atof(argv[2]) : 100;
@@ -106,22 +112,30 @@ int main(int argc, char** argv) {
     const stf::ShellSampler sampler(model);
     const double stride = ns_per_stride(sampler, 2'000'000, sink);
     const double collision = ns_per_collision(model.albedo, model.g, 10'000'000, sink);
-    std::printf("  {\"tau\": %g, \"albedo\": %.6g, \"g\": %g, \"ns_per_stride\": %.1f, \"ns_per_collision\": %.1f, "
-                "\"stride_cost_collisions\": %.2f}%s\n",
-                model.tau, model.albedo, model.g, stride, collision, stride / collision, i + 1 < pack.size() ? "," : "");
+    std::printf(
+        "  {\"tau\": %g, \"albedo\": %.6g, \"g\": %g, \"ns_per_stride\": %.1f, "
+        "\"ns_per_collision\": %.1f, "
+        "\"stride_cost_collisions\": %.2f}%s\n",
+        model.tau, model.albedo, model.g, stride, collision, stride / collision,
+        i + 1 < pack.size() ? "," : "");
   }
   stf::Medium m;
-  m.sigma_s = 100 * pack.front().model.albedo, m.sigma_a = 100 - m.sigma_s, m.g = pack.front().model.g;
+  m.sigma_s = 100 * pack.front().model.albedo, m.sigma_a = 100 - m.sigma_s,
+  m.g = pack.front().model.g;
   m.radius = tau / 100;
   const stf::render::BruteForce brute(m);
   const stf::render::ShellStrides strided(m, pack);
   const LoopRun b = render_loop(m, brute, spp, sink), s = render_loop(m, strided, spp, sink);
   const double ns_collision = 1e9 * b.seconds / b.collisions;
-  const double ns_stride = s.strides > 0 ? (1e9 * s.seconds - ns_collision * s.collisions) / s.strides : 0;
-  std::printf("], \"render_loop\": {\"tau\": %g, \"spheres\": %d, \"spp\": %d, \"brute_seconds\": %.3f, "
-              "\"brute_collisions\": %.0f, \"stf_seconds\": %.3f, \"stf_collisions\": %.0f, \"stf_strides\": %.0f, "
-              "\"ns_per_collision\": %.1f, \"ns_per_stride\": %.1f, \"stride_cost_collisions\": %.2f}, \"sink\": %g}\n",
-              tau, strided.spheres(), spp, b.seconds, b.collisions, s.seconds, s.collisions, s.strides, ns_collision,
-              ns_stride, ns_stride / ns_collision, sink);
+  const double ns_stride =
+      s.strides > 0 ? (1e9 * s.seconds - ns_collision * s.collisions) / s.strides : 0;
+  std::printf(
+      "], \"render_loop\": {\"tau\": %g, \"spheres\": %d, \"spp\": %d, \"brute_seconds\": %.3f, "
+      "\"brute_collisions\": %.0f, \"stf_seconds\": %.3f, \"stf_collisions\": %.0f, "
+      "\"stf_strides\": %.0f, "
+      "\"ns_per_collision\": %.1f, \"ns_per_stride\": %.1f, \"stride_cost_collisions\": %.2f}, "
+      "\"sink\": %g}\n",
+      tau, strided.spheres(), spp, b.seconds, b.collisions, s.seconds, s.collisions, s.strides,
+      ns_collision, ns_stride, ns_stride / ns_collision, sink);
   return 0;
 }

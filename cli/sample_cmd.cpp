@@ -3,13 +3,11 @@
 #include <H5Cpp.h>
 
 #include <cstdio>
-#include <fstream>
 #include <memory>
 
 #include "cli.h"
 #include "h5io.h"
 #include "model_io.h"
-#include "rng.h"
 #include "stf/pack.h"
 #include "stf/sampler.h"
 
@@ -17,24 +15,13 @@ namespace stf::cli {
 
 namespace {
 
-bool is_pack(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  char magic[8] = {};
-  in.read(magic, 8);
-  return std::string(magic, 8) == "STFPACK1";
-}
-
 // A model from an stf-model HDF5 file or the first entry of a pack.
 StfModel load_model(const std::string& path) {
-  if (is_pack(path)) {
-    std::vector<PackEntry> entries;
-    std::string error;
-    if (!read_pack_file(path, entries, error)) fail(path + ": " + error);
-    if (entries.empty()) fail(path + ": the pack holds no model");
-    return entries.front().model;
+  try {
+    return fit::read_model_or_pack(path);
+  } catch (const std::runtime_error& e) {
+    fail(e.what());
   }
-  if (fit::file_format(path) != "stf-model") fail("'" + path + "' is neither an stf model nor an stf pack");
-  return fit::read_model(path);
 }
 
 struct PackOptions {
@@ -110,7 +97,7 @@ void run_sample(const SampleOptions& o, const CLI::App& cmd) {
   if (!o.eval.empty() && cmd.count("--seed")) fail("--seed and --eval exclude each other: --eval draws nothing");
   // Every sample is held in memory (about 120 bytes with its file image) until the file is written.
   const std::int64_t n = parse_count(o.count, "--count", 1, 50'000'000);
-  std::uint64_t state = std::uint64_t(parse_count(o.seed, "--seed", 0, INT64_MAX));
+  const std::uint64_t seed = std::uint64_t(parse_count(o.seed, "--seed", 0, INT64_MAX));
   AtomicOutput out(o.output, "-o", {{o.model, "the model"}, {o.eval, "--eval"}});
   ShellSampler sampler(load_model(o.model));
   std::vector<double> point, direction, pdf;
@@ -125,14 +112,13 @@ void run_sample(const SampleOptions& o, const CLI::App& cmd) {
     write_samples(out, point, direction, pdf, {}, sampler.escape_probability());
     return;
   }
-  auto u = [&] { return double(splitmix64(state) >> 11) * 0x1p-53; };
+  SampleStream stream(seed, 0);
   std::vector<std::int8_t> component;
   point.reserve(3 * std::size_t(n)), direction.reserve(3 * std::size_t(n)), pdf.reserve(std::size_t(n));
   component.reserve(std::size_t(n));
   for (std::int64_t i = 0; i < n; ++i) {
     if (i % (1 << 16) == 0) stop_if_interrupted();
-    double u0 = u(), u1 = u(), u2 = u(), u3 = u();
-    ExitSample s = sampler.sample(u0, u1, u2, u3);
+    const ExitSample s = stream.next(sampler);
     point.insert(point.end(), {s.point.x, s.point.y, s.point.z});
     direction.insert(direction.end(), {s.direction.x, s.direction.y, s.direction.z});
     pdf.push_back(s.pdf);

@@ -2,10 +2,14 @@
 
 #include <H5Cpp.h>
 
+#include <cerrno>
+#include <cstring>
+#include <fstream>
 #include <stdexcept>
 
 #include "files.h"
 #include "h5io.h"
+#include "stf/pack.h"
 #include "stf/sh.h"
 
 namespace stf::fit {
@@ -263,6 +267,22 @@ std::vector<double> read_chi2_dof(const std::string& path) {
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(path + ": " + e.what());
   }
+}
+
+StfModel read_model_or_pack(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("'" + path + "': " + std::strerror(errno));
+  char magic[8] = {};
+  in.read(magic, 8);
+  if (std::string(magic, 8) == "STFPACK1") {
+    std::vector<PackEntry> entries;
+    std::string error;
+    if (!read_pack_file(path, entries, error)) throw std::runtime_error(path + ": " + error);
+    if (entries.empty()) throw std::runtime_error(path + ": the pack holds no model");
+    return entries.front().model;
+  }
+  if (file_format(path) != "stf-model") throw std::runtime_error("'" + path + "' is neither an stf model nor an stf pack");
+  return read_model(path);
 }
 
 std::string file_format(const std::string& path) {

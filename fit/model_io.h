@@ -44,6 +44,9 @@ void write_model(const StfModel& model, const FitReport& report, const Provenanc
 // SH tables are rebuilt. Values are checked (model_error).
 StfModel read_model(const std::string& path);
 ModelSummary read_model_summary(const std::string& path);
+// A model from an stf-model file, or the first entry of a pack (what `stf sample` and Python's
+// stf.Model read). Throws std::runtime_error with one line naming the file.
+StfModel read_model_or_pack(const std::string& path);
 // The per-bin chi^2 / dof of a model against the table it was fitted to.
 std::vector<double> read_chi2_dof(const std::string& path);
 // The "format" attribute of an stf HDF5 file ("stf-table", "stf-model"), or "" if none.

@@ -47,3 +47,9 @@ echo "$out"
 echo "$out" | awk '/^direct/ {d = $3; sd = $5} /^strided/ {s = $3; ss = $5; n = $6}
   END { z = (s - d) / sqrt(sd * sd + ss * ss); printf "z = %.2f\n", z;
         if (n + 0 <= 0 || z > 4.5 || z < -4.5) exit 1 }'
+# The Python module, where the build made one: installed where Debian's python3 finds it.
+if ls "$build"/python/stf*.so > /dev/null 2>&1; then
+  site=$(ls -d "$work"/install/lib/python3*/dist-packages)
+  PYTHONPATH="$site" /usr/bin/python3 -c "import stf, sys; sys.exit(0 if stf.__file__.startswith('$site') else 1)"
+  echo "python module installed in $site"
+fi

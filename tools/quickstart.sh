@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 
 packages=(cmake g++ make pkg-config libhdf5-dev libcli11-dev wcslib-dev libhealpix-cxx-dev
           libceres-dev libeigen3-dev libtoml11-dev libgtest-dev libbenchmark-dev python3-matplotlib python3-h5py
-          python3-numpy openmpi-bin libopenmpi-dev)
+          python3-numpy openmpi-bin libopenmpi-dev pybind11-dev python3-dev python3-healpy)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -46,4 +46,5 @@ build/stf render "${medium[@]}" --method stf --cache out/render.cache -o out/ren
 echo "quickstart: in out/: default.stfpack and report/ (report.md, PNGs, JSON)," \
      "render_brute.png and render_stf.png (the same sphere by brute force and in strides)," \
      "default_alpha30.png (CSC above, HEALPix below)," \
-     "default_vmf4_alpha30.png (table and fitted vmf:4 side by side)" >&2
+     "default_vmf4_alpha30.png (table and fitted vmf:4 side by side);" \
+     "Python: PYTHONPATH=build/python /usr/bin/python3 -c 'import stf' (docs/python.md)" >&2

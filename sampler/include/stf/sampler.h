@@ -12,6 +12,7 @@
 // methods are const, thread-safe, allocation-free.
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include "stf/alias.h"
@@ -106,6 +107,29 @@ class ShellSampler {
   std::vector<AliasTable> cells_;  // sh: per bin, over its equal-area cells
   OnceScattered once_;             // when the model has a once-scattered part
   std::vector<OutwardBin> outward_;  // hemispherical lobes: each bin's outward factor
+};
+
+// The uniforms of `stf sample --seed K`: SplitMix64 from K, four 53-bit uniforms per draw.
+// Draw i starts at the state K + 4 i gamma, so the stream can be cut into pieces (threads)
+// that give the same draws, bit for bit.
+class SampleStream {
+ public:
+  SampleStream(std::uint64_t seed, std::uint64_t first_draw) : state_(seed + 4 * first_draw * kGamma) {}
+  // The next draw of `sampler`.
+  ExitSample next(const ShellSampler& sampler) {
+    const double u0 = uniform(), u1 = uniform(), u2 = uniform(), u3 = uniform();
+    return sampler.sample(u0, u1, u2, u3);
+  }
+  double uniform() {
+    std::uint64_t z = (state_ += kGamma);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return double((z ^ (z >> 31)) >> 11) * 0x1p-53;
+  }
+
+ private:
+  static constexpr std::uint64_t kGamma = 0x9e3779b97f4a7c15ull;
+  std::uint64_t state_;
 };
 
 }  // namespace stf
