@@ -81,6 +81,8 @@ void run_build(const BuildOptions& o) {
   }
   if (any_rank(!failure.empty())) {
     stop_if_interrupted();  // Ctrl-C: say so (finished entries stay in the cache)
+    // main() prints rank 0's errors only: another rank names its own here.
+    if (!failure.empty() && !w.root()) std::fprintf(stderr, "stf: error (rank %d): %s\n", w.rank, failure.c_str());
     if (!failure.empty()) fail(failure);
     if (!w.root()) return;
     fail("another MPI rank failed; finished entries stay in the cache");

@@ -41,6 +41,8 @@ void check_config_syntax(int argc, char** argv) {
     else if (a.rfind("--config=", 0) == 0) path = a.substr(9);
     else continue;
     if (::access(path.c_str(), R_OK) != 0) fail("--config '" + path + "': " + std::strerror(errno));
+    struct stat st;
+    if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) continue;  // a pipe is read once, by CLI11
     try {
       (void)toml::parse(path);
     } catch (const toml::syntax_error& e) {
@@ -160,7 +162,10 @@ int open_in_place(const std::string& target, const std::string& path) {
       ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
       return fd;
     }
-    if (errno != ENXIO && errno != EINTR) fail("cannot open '" + path + "' for writing: " + std::strerror(errno));
+    const int error = errno;
+    struct stat st;
+    const bool fifo_without_reader = error == ENXIO && ::stat(target.c_str(), &st) == 0 && S_ISFIFO(st.st_mode);
+    if (!fifo_without_reader && error != EINTR) fail("cannot open '" + path + "' for writing: " + std::strerror(error));
     stop_if_interrupted();
     ::usleep(20000);
   }
@@ -202,7 +207,9 @@ bool inside_folder(const std::string& path, const std::string& folder) {
   if (path == "-") return false;
   char a[PATH_MAX], b[PATH_MAX];
   const std::string target = follow_links(path, "");
-  return ::realpath(folder_of(target).c_str(), a) && ::realpath(folder.c_str(), b) && std::string(a) == std::string(b);
+  if (!::realpath(folder_of(target).c_str(), a) || !::realpath(folder.c_str(), b)) return false;
+  const std::string inner = a, outer = b;
+  return inner == outer || inner.rfind(outer + "/", 0) == 0;
 }
 
 void refuse_same_file(const std::string& path, const std::string& option, const std::vector<NamedFile>& keep) {
@@ -223,11 +230,13 @@ bool written_in_place(const std::string& path) {
 OutputLock::OutputLock(const std::string& target, const std::string& option, const std::string& path)
     : lock_(target + ".lock") {
   for (int tries = 0; tries < 100; ++tries) {
-    fd_ = ::open(lock_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    fd_ = ::open(lock_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
     if (fd_ < 0) fail(option + " '" + path + "' is not writable: " + std::strerror(errno));
     if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      const int error = errno;
       ::close(fd_);
       fd_ = -1;
+      if (error != EWOULDBLOCK) fail(option + " '" + path + "': cannot lock " + lock_ + ": " + std::strerror(error));
       fail(option + " '" + path + "' is being written by another stf process (it holds " + lock_ +
            "); wait for it to finish or choose another output");
     }
@@ -290,7 +299,7 @@ AtomicOutput::~AtomicOutput() {
 ScratchFile::ScratchFile(const std::string& what) {
   const char* tmpdir = std::getenv("TMPDIR");
   const std::string folder = tmpdir && *tmpdir ? tmpdir : "/tmp";
-  remove_orphans(folder, "stf-");
+  remove_orphans(folder, "stf-", 6);
   std::string pattern = folder + "/stf-" + std::to_string(::getpid()) + "-XXXXXX";
   std::vector<char> name(pattern.begin(), pattern.end());
   name.push_back('\0');
@@ -316,6 +325,16 @@ void AtomicOutput::write(std::string_view bytes) {
 
 void AtomicOutput::commit() {
   stop_if_interrupted();  // after Ctrl-C nothing is put in place, however far the work got
+  put_in_place();
+}
+
+void commit_all(std::initializer_list<AtomicOutput*> outputs) {
+  stop_if_interrupted();
+  for (AtomicOutput* out : outputs)
+    if (out) out->put_in_place();
+}
+
+void AtomicOutput::put_in_place() {
   if (in_place_) {
     int fd = path_ == "-" ? STDOUT_FILENO : open_in_place(target_, path_);
     copy_into(temp_, fd, path_);
@@ -332,23 +351,26 @@ void AtomicOutput::commit() {
 namespace {
 
 // A script's stderr, passed on line by line until a Python traceback starts; from there it is
-// held back, and only its last line (the exception) makes the one-line error.
+// held back: if the script fails, only its last line (the exception) makes the one-line error;
+// if it succeeds after all, the held lines are passed on too.
 class ScriptErrors {
  public:
   void take(const char* bytes, std::size_t n) {
     pending_.append(bytes, n);
     for (std::size_t end; (end = pending_.find('\n')) != std::string::npos; pending_.erase(0, end + 1)) {
       const std::string line = pending_.substr(0, end);
-      if (line.rfind("Traceback (most recent call last)", 0) == 0) held_ = true;
-      if (!held_) std::fprintf(stderr, "%s\n", line.c_str());
+      if (line.rfind("Traceback (most recent call last)", 0) == 0) holding_ = true;
+      if (holding_) held_ += line + "\n";
+      else std::fprintf(stderr, "%s\n", line.c_str());
       if (!line.empty()) last_ = line;
     }
   }
   std::string last() const { return pending_.empty() ? last_ : pending_; }
+  void pass_on_the_rest() const { std::fprintf(stderr, "%s%s", held_.c_str(), pending_.c_str()); }
 
  private:
-  std::string pending_, last_;
-  bool held_ = false;
+  std::string pending_, last_, held_;
+  bool holding_ = false;
 };
 
 void drain(int fd, ScriptErrors& errors) {
@@ -403,7 +425,7 @@ void run_python(const std::string& script, const std::vector<std::string>& args,
   }
   drain(pipe_fds[0], errors);
   ::close(pipe_fds[0]);
-  if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return;
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return errors.pass_on_the_rest();
   const std::string why = WIFEXITED(status) ? " exited with status " + std::to_string(WEXITSTATUS(status)) : " was killed";
   fail(what + " failed (" + script + why + ")" + (errors.last().empty() ? "" : ": " + errors.last()));
 }

@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <initializer_list>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -120,15 +121,21 @@ class AtomicOutput {
   void stage(std::string_view bytes);
   // For a writer that needs a path (a Python script): write the temporary, then commit().
   const std::string& temp_path() const { return temp_; }
+  // Puts the finished file in place, unless the command was interrupted (then nothing is).
   void commit();
+  // Several staged outputs into place together: interrupted before the first or not at all.
+  friend void commit_all(std::initializer_list<AtomicOutput*> outputs);
 
  private:
+  void put_in_place();
   std::string path_, option_, target_, temp_;
   std::optional<OutputLock> lock_;
   std::optional<ScratchFile> scratch_;  // the temporary file of a device, FIFO or stdout
   bool in_place_ = false;  // device, FIFO or stdout: copy into it on commit
   bool committed_ = false;
 };
+
+void commit_all(std::initializer_list<AtomicOutput*> outputs);
 
 // Fails naming the option when one of `inputs` is not an existing file. (For positional lists,
 // where CLI11's own check would run before it reports an unknown option.)

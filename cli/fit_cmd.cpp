@@ -158,9 +158,7 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
   out.stage(fit::model_file(model, report, provenance));
   if (report_out) report_out->stage(report_json(report, model, o.model));
   if (pack_out) pack_out->stage(bytes_of(write_pack({PackEntry{"", model}})));
-  out.commit();
-  if (report_out) report_out->commit();
-  if (pack_out) pack_out->commit();
+  commit_all({&out, report_out ? &*report_out : nullptr, pack_out ? &*pack_out : nullptr});
   if (!o.quiet)
     std::fprintf(stderr, "stf fit: %s size %d in %.3g s, %lld bytes (table %lld bytes) -> %s\n", o.model.c_str(),
                  report.chosen_size, report.fit_time_s, (long long)model.packed_bytes(),
@@ -228,9 +226,9 @@ void run_eval(const EvalOptions& o) {
   }
   if (cells_out) write_cells(*cells_out, o, reference, joint);
   std::string json = fit::to_json(ev);
-  if (json_out) write_file(*json_out, json);
+  if (json_out) json_out->stage(json);
   else std::fputs(json.c_str(), stdout);
-  if (cells_out) cells_out->commit();  // after the JSON: a failed command leaves neither
+  commit_all({json_out ? &*json_out : nullptr, cells_out ? &*cells_out : nullptr});  // both or neither
   std::fprintf(stderr, "stf eval: tv %.4g (joint %.4g), kl %.4g%s\n", ev.tv, ev.joint_tv, ev.kl,
                ev.model_bytes >= 0 ? (", " + std::to_string(ev.model_bytes) + " model bytes").c_str() : "");
 }

@@ -29,7 +29,8 @@ void refuse_empty_values(CLI::App& app) {
                                  "");
   for (CLI::App* command : app.get_subcommands([](CLI::App*) { return true; }))
     for (CLI::Option* option : command->get_options())
-      if (option->get_type_size() != 0 && !option->get_lnames().empty() && option->get_lnames().front() != "help")
+      if (option->get_type_size() != 0 && !option->get_lnames().empty() && option->get_lnames().front() != "help" &&
+          option->get_lnames().front() != "name")  // pack --name '': an entry without a name
         option->check(non_empty);
 }
 

@@ -73,21 +73,23 @@ std::string checkpoint_path(const std::string& output) {
   return output + ".rank-" + std::to_string(world().rank) + "-of-" + std::to_string(world().size) + ".checkpoint";
 }
 
-// Checkpoints beside the output that a run on another number of processes left (OUT.checkpoint,
-// OUT.rank-R-of-N.checkpoint): --resume must be run as that run was, not start from nothing.
-std::string other_runs_checkpoint(const std::string& output, const std::string& mine) {
+// A checkpoint beside the output that a run on another number of processes left
+// (OUT.checkpoint of one process, OUT.rank-R-of-N.checkpoint of N ranks), or "": --resume must
+// run as that run did, not start from nothing.
+std::string other_runs_checkpoint(const std::string& output) {
   namespace fs = std::filesystem;
   const fs::path out(output);
   const std::string name = out.filename().string(), suffix = ".checkpoint";
-  auto is_checkpoint = [&](const std::string& f) {
-    if (f == name + suffix) return true;
-    return f.rfind(name + ".rank-", 0) == 0 && f.size() > suffix.size() &&
-           f.compare(f.size() - suffix.size(), suffix.size(), suffix) == 0;
-  };
+  const std::string mine = world().size == 1 ? "" : "-of-" + std::to_string(world().size) + suffix;
   std::error_code error;
   for (const fs::directory_entry& e : fs::directory_iterator(out.has_parent_path() ? out.parent_path() : ".", error)) {
     const std::string f = e.path().filename().string();
-    if (is_checkpoint(f) && f != fs::path(mine).filename().string()) return e.path().string();
+    const bool single = f == name + suffix;
+    const bool ranks = f.rfind(name + ".rank-", 0) == 0 && f.size() > suffix.size() &&
+                       f.compare(f.size() - suffix.size(), suffix.size(), suffix) == 0;
+    const bool same_count = world().size == 1 ? single : ranks && f.size() > mine.size() &&
+                                                             f.compare(f.size() - mine.size(), mine.size(), mine) == 0;
+    if ((single || ranks) && !same_count) return e.path().string();
   }
   return "";
 }
@@ -98,7 +100,7 @@ std::optional<Progress> resumable(const PrecomputeOptions& o, const PrecomputeSe
     if (o.resume) fail("--resume needs -o to name a file: checkpoints are kept beside it");
     return std::nullopt;
   }
-  if (std::string other = other_runs_checkpoint(o.output, path); !other.empty() && !exists(path))
+  if (std::string other = other_runs_checkpoint(o.output); !other.empty() && !exists(path))
     fail("checkpoint " + other + " is of a run on another number of MPI ranks; resume it with as many ranks (" +
          (other.find(".rank-") == std::string::npos ? std::string("one process") : "mpirun -n N, N as in its name") +
          "), or remove it");

@@ -34,7 +34,7 @@ void write_all(int fd, std::string_view bytes, const std::string& name) {
 }  // namespace
 
 void write_durably(const std::string& path, std::string_view bytes, const std::string& name) {
-  int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NOFOLLOW, 0644);
   if (fd < 0) fail_with_errno(name, errno);
   write_all(fd, bytes, name);
   // fsync and close report what a write could not yet know: blocks the device could not take.
@@ -54,7 +54,7 @@ void sync_file(const std::string& path, const std::string& name) {
     ::close(fd);
     fail_with_errno(name, error);
   }
-  ::close(fd);
+  if (::close(fd) != 0) fail_with_errno(name, errno);
 }
 
 void sync_folder_of(const std::string& path) {
@@ -68,14 +68,17 @@ void sync_folder_of(const std::string& path) {
   ::close(fd);
 }
 
-void remove_orphans(const std::string& folder, const std::string& prefix) {
+void remove_orphans(const std::string& folder, const std::string& prefix, int tail) {
   namespace fs = std::filesystem;
   std::error_code error;
   for (const fs::directory_entry& e : fs::directory_iterator(folder, error)) {
     const std::string name = e.path().filename().string();
     if (name.rfind(prefix, 0) != 0) continue;
     const std::string rest = name.substr(prefix.size());
-    const std::string pid = rest.substr(0, rest.find('-'));
+    const std::size_t dash = rest.find('-');
+    const std::string pid = rest.substr(0, dash);
+    if (tail == 0 ? dash != std::string::npos : dash == std::string::npos || rest.size() != dash + 1 + std::size_t(tail))
+      continue;
     if (pid.empty() || pid.size() > 9 || pid.find_first_not_of("0123456789") != std::string::npos)
       continue;
     if (::kill(pid_t(std::stol(pid)), 0) != 0 && errno == ESRCH) fs::remove(e.path(), error);
@@ -87,6 +90,7 @@ void replace_file(const std::string& path, std::string_view bytes) {
   remove_orphans(target.has_parent_path() ? target.parent_path().string() : ".",
                  target.filename().string() + ".tmp-");
   const std::string temp = path + ".tmp-" + std::to_string(::getpid());
+  ::unlink(temp.c_str());  // whatever an earlier process of this number left there
   try {
     write_durably(temp, bytes, path);
   } catch (...) {

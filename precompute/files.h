@@ -8,8 +8,8 @@
 
 namespace stf {
 
-// Writes `bytes` to `path` (created, or emptied when it exists), flushes them to the device
-// and closes it, checking each step. Throws std::runtime_error "cannot write NAME: REASON",
+// Writes `bytes` to `path` (created, or emptied when it exists; never through a symbolic
+// link), flushes them to the device and closes it, checking each step. Throws std::runtime_error "cannot write NAME: REASON",
 // REASON the system's ("No space left on device", "File too large"); `name` is how messages
 // call the file (the user's name for it, not a temporary's).
 void write_durably(const std::string& path, std::string_view bytes, const std::string& name);
@@ -24,9 +24,10 @@ void sync_file(const std::string& path, const std::string& name);
 // naming `path` and the reason.
 void replace_file(const std::string& path, std::string_view bytes);
 
-// Removes the files PREFIX + PID (and PREFIX + PID + "-..." ) in `folder` whose process no
-// longer runs: temporaries a kill -9, which no handler sees, left behind.
-void remove_orphans(const std::string& folder, const std::string& prefix);
+// Removes the files PREFIX + PID in `folder` (with `tail` > 0: PREFIX + PID + "-" + `tail`
+// more characters, as mkstemp makes them) whose process no longer runs: temporaries a kill -9,
+// which no handler sees, left behind.
+void remove_orphans(const std::string& folder, const std::string& prefix, int tail = 0);
 
 // Flushes a folder's entries (a rename into it) to the device; best effort.
 void sync_folder_of(const std::string& path);

@@ -61,7 +61,11 @@ void in_parallel(py::ssize_t n, int threads, Body body) {
       std::max<py::ssize_t>(1, std::min<py::ssize_t>(threads > 0 ? threads : cores, n / 65536)));
   py::gil_scoped_release release;
   std::vector<std::thread> pool;
-  for (int k = 1; k < t; ++k) pool.emplace_back(body, n * k / t, n * (k + 1) / t);
+  try {
+    for (int k = 1; k < t; ++k) pool.emplace_back(body, n * k / t, n * (k + 1) / t);
+  } catch (...) {  // no thread to be had: those started finish, the rest runs here
+    for (int k = int(pool.size()) + 1; k < t; ++k) body(n * k / t, n * (k + 1) / t);
+  }
   body(py::ssize_t(0), n / t);
   for (std::thread& th : pool) th.join();
 }

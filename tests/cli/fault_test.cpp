@@ -423,6 +423,13 @@ TEST_F(Fault, MpiRanksAgreeOnTheRunOrRefuse) {
   EXPECT_EQ(bad.status, 2);
   EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
   EXPECT_FALSE(fs::exists(out("m.h5")));
+  // A rank without a checkpoint of its own (its share finished before the first save) is no
+  // sign of a run on another number of ranks.
+  std::ofstream(out("v.h5.rank-1-of-2.checkpoint")) << "damaged";
+  Result resume = mpi(mpirun(2) + b + " " + kTable + "--resume -o " + out("v.h5"));
+  EXPECT_EQ(resume.status, 2) << resume.err;  // rank 1's checkpoint is damaged
+  EXPECT_EQ(resume.err.find("another number of MPI ranks"), std::string::npos) << resume.err;
+  fs::remove(out("v.h5.rank-1-of-2.checkpoint"));
   expect_no_litter("mpi");
 }
 
@@ -438,7 +445,7 @@ TEST_F(Fault, SmallMisusesGetOneLine) {
   std::ofstream(out("scene.toml")) << kScene;
   std::ofstream(out("broken.toml")) << "[precompute\nsigma-s = 1\n";
   std::ofstream(out("empty.toml")) << "[precompute]\nsigma_s = \"\"\nsigma_a = 0.1\ng = 0\n";
-  fs::create_directories(out("cache"));
+  fs::create_directories(out("cache/sub"));
   const std::vector<Misuse> cases = {
       {"precompute --sigma-s '' --sigma-a 0.5 --g 0.3 -o " + out("x.h5"), "--sigma-s"},
       {"precompute --sigma-s 1 --sigma-a '' --g 0.3 -o " + out("x.h5"), "--sigma-a"},
@@ -453,6 +460,7 @@ TEST_F(Fault, SmallMisusesGetOneLine) {
       {"fitt " + out("t.h5") + " -o " + out("x.h5"), "unknown command 'fitt'"},
       {"build " + out("scene.toml") + " --cache " + out("cache") + " -o " + out("cache/x.model.h5"),
        "inside the cache"},
+      {"build " + out("scene.toml") + " --cache " + out("cache") + " -o " + out("cache/sub/x.stfpack"), "inside the cache"},
       {"build " + out("scene.toml") + " --json -o -", "--json and -o -"},
       {"report --medium n:1e300:0:0.5 -o " + out("rep"), "--medium"},
       {"report --medium :1:0:0.5 -o " + out("rep"), "NAME"},
@@ -480,6 +488,7 @@ TEST_F(Fault, CornersOfOutputsAndModels) {
   Result sh0 = stf("fit --quiet " + out("t.h5") + " --model sh:0 -o " + out("sh0.h5"));
   ASSERT_EQ(sh0.status, 0) << sh0.err;
   EXPECT_EQ(stf("sample " + out("sh0.h5") + " --count 100 -o " + out("s.h5")).status, 0);
+  EXPECT_EQ(stf("pack " + out("sh0.h5") + " --name '' -o " + out("p.stfpack")).status, 0);  // an entry without a name
 
   std::ofstream(out("scene.toml")) << kScene;
   std::ofstream(out("b.stfpack")) << "old";
