@@ -2,10 +2,8 @@
 
 #include <fcntl.h>
 #include <limits.h>
-#include <spawn.h>
 #include <sys/file.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -15,7 +13,6 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <iostream>
 #include <sstream>
 #include <toml.hpp>
 
@@ -346,111 +343,6 @@ void AtomicOutput::put_in_place() {
     sync_folder_of(target_);
   }
   committed_ = true;
-}
-
-namespace {
-
-// A script's stderr, passed on line by line until a Python traceback starts; from there it is
-// held back: if the script fails, only its last line (the exception) makes the one-line error;
-// if it succeeds after all, the held lines are passed on too.
-class ScriptErrors {
- public:
-  void take(const char* bytes, std::size_t n) {
-    pending_.append(bytes, n);
-    for (std::size_t end; (end = pending_.find('\n')) != std::string::npos; pending_.erase(0, end + 1)) {
-      const std::string line = pending_.substr(0, end);
-      if (line.rfind("Traceback (most recent call last)", 0) == 0) holding_ = true;
-      if (holding_) held_ += line + "\n";
-      else std::fprintf(stderr, "%s\n", line.c_str());
-      if (!line.empty()) last_ = line;
-    }
-  }
-  std::string last() const { return pending_.empty() ? last_ : pending_; }
-  void pass_on_the_rest() const { std::fprintf(stderr, "%s%s", held_.c_str(), pending_.c_str()); }
-
- private:
-  std::string pending_, last_, held_;
-  bool holding_ = false;
-};
-
-void drain(int fd, ScriptErrors& errors) {
-  char buf[4096];
-  for (ssize_t n; (n = ::read(fd, buf, sizeof buf)) > 0;) errors.take(buf, std::size_t(n));
-}
-
-}  // namespace
-
-void run_python(const std::string& script, const std::vector<std::string>& args, const std::string& what) {
-  std::vector<std::string> words{"/usr/bin/python3", tools_dir() + "/" + script};
-  words.insert(words.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (std::string& w : words) argv.push_back(w.data());
-  argv.push_back(nullptr);
-  int pipe_fds[2];
-  if (::pipe2(pipe_fds, O_CLOEXEC) != 0) fail(what + ": cannot make a pipe: " + std::strerror(errno));
-  ::fcntl(pipe_fds[0], F_SETFL, O_NONBLOCK);
-  posix_spawn_file_actions_t files;
-  posix_spawn_file_actions_init(&files);
-  posix_spawn_file_actions_adddup2(&files, pipe_fds[1], STDERR_FILENO);
-  // Its own process group: a terminal's Ctrl-C reaches only stf, which stops the script
-  // quietly (no Python traceback) and cleans up.
-  posix_spawnattr_t attr;
-  posix_spawnattr_init(&attr);
-  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP);
-  posix_spawnattr_setpgroup(&attr, 0);
-  pid_t pid;
-  int error = posix_spawn(&pid, argv[0], &files, &attr, argv.data(), environ);
-  posix_spawnattr_destroy(&attr);
-  posix_spawn_file_actions_destroy(&files);
-  ::close(pipe_fds[1]);
-  if (error != 0) {
-    ::close(pipe_fds[0]);
-    fail(what + ": cannot run /usr/bin/python3: " + std::strerror(error));
-  }
-  ScriptErrors errors;
-  int status = 0;
-  while (::waitpid(pid, &status, WNOHANG) == 0) {
-    drain(pipe_fds[0], errors);
-    if (interrupted) {
-      // The whole group: the script's own stf runs too, which would otherwise go on writing
-      // into the folders the caller is about to remove. Each cleans up and exits; wait (a few
-      // seconds at most) until none is left.
-      ::kill(-pid, SIGTERM);
-      ::waitpid(pid, &status, 0);
-      for (int i = 0; i < 500 && ::kill(-pid, 0) == 0; ++i) ::usleep(10000);
-      ::close(pipe_fds[0]);
-      throw Interrupted();
-    }
-    ::usleep(20000);
-  }
-  drain(pipe_fds[0], errors);
-  ::close(pipe_fds[0]);
-  if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return errors.pass_on_the_rest();
-  const std::string why = WIFEXITED(status) ? " exited with status " + std::to_string(WEXITSTATUS(status)) : " was killed";
-  fail(what + " failed (" + script + why + ")" + (errors.last().empty() ? "" : ": " + errors.last()));
-}
-
-ProgressBar::ProgressBar(std::string label, bool quiet)
-    : label_(std::move(label)), enabled_(!quiet && ::isatty(STDERR_FILENO)) {}
-
-void ProgressBar::update(std::int64_t done, std::int64_t total, double seconds) {
-  if (!enabled_ || total <= 0) return;
-  const int width = 30;
-  double frac = double(done) / double(total);
-  int filled = int(frac * width);
-  double rate = seconds > 0 ? double(done) / seconds : 0;
-  double eta = rate > 0 ? double(total - done) / rate : 0;
-  std::string bar(filled, '#');
-  bar.resize(width, '.');
-  std::fprintf(stderr, "\r%s [%s] %5.1f%%  %.3g paths/s  ETA %4.0f s ", label_.c_str(), bar.c_str(),
-               100 * frac, rate, eta);
-  std::fflush(stderr);
-  drawn_ = true;
-}
-
-void ProgressBar::finish() {
-  if (drawn_) std::fprintf(stderr, "\n");
-  drawn_ = false;
 }
 
 }  // namespace stf::cli

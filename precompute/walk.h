@@ -57,7 +57,6 @@ class SparseCounts {
   void add(std::uint64_t key, double count = 1);
   std::map<std::uint64_t, double> sorted() const;
   void assign(const std::map<std::uint64_t, double>& counts);
-  bool empty() const { return used_ == 0; }
 
  private:
   static constexpr std::uint64_t kEmpty = ~std::uint64_t(0);

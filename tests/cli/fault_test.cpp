@@ -501,9 +501,15 @@ TEST_F(Fault, CornersOfOutputsAndModels) {
             fs::perms::owner_read | fs::perms::owner_write);
 
   std::string table;
-  Result piped = stf(kTable + "--checkpoint-seconds 0.001 -o -", &table);
+  Result piped = stf(kTable + "-o -", &table);
   EXPECT_EQ(piped.status, 0) << piped.err;
   EXPECT_EQ(table.substr(1, 3), "HDF");
+  // An interrupted run to standard output keeps no checkpoint (it had nowhere to put one but
+  // beside a file named '-' in the working folder).
+  Result stopped = run_child({"precompute", "--sigma-s", "50", "--sigma-a", "0", "--g", "0.5", "--paths", "1e8",
+                              "--quiet", "--checkpoint-seconds", "0.1", "-o", "-"},
+                             RLIM_INFINITY, 1500);
+  EXPECT_EQ(stopped.status, 130) << stopped.err;
   EXPECT_FALSE(fs::exists("-.checkpoint"));
 
   // Scratch files a kill -9 left (of a process that no longer runs) go with the next one made.
