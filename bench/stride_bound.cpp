@@ -9,7 +9,8 @@
 // (spheres from it up by a constant ratio: 2, as `stf render` packs them, sqrt 2, 2^(1/4), or
 // 1 for any radius down to it), with the stride cost at which a 10x speed-up would need strides to come. Counts are per
 // path that hits the sphere, over the scene's whole image. JSON on stdout.
-//   stride_bound [HITTING_PATHS]
+//   stride_bound [HITTING_PATHS]                              the table (albedo 0.999, g 0.8)
+//   stride_bound HITTING_PATHS TAU ALBEDO G TAU_MIN RATIO     one medium and ladder (sigma_t 100)
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -91,30 +92,46 @@ Counts per_path(const stf::Medium& m, const Radii* radii, long paths) {
   return {sum.collisions / double(hits), sum.strides / double(hits)};
 }
 
+
+
+// One row of the table: brute force's collisions against ideal strides' per hitting path.
+void print_row(const stf::Medium& m, double brute, const Radii& radii, long paths, bool first) {
+  const Counts n = per_path(m, &radii, paths);
+  // The stride cost, in collisions, at which the speed-up would be 10 (negative: never).
+  const double cost_for_10x = (brute / 10 - n.collisions) / n.strides;
+  std::printf("%s  {\"tau\": %g, \"albedo\": %g, \"g\": %g, \"smallest_sphere_tau\": %g, \"radius_ratio\": %.4f, "
+              "\"brute_collisions\": %.2f, \"shell_collisions\": %.2f, \"strides\": %.2f, \"speedup_free_strides\": %.2f, "
+              "\"stride_cost_for_10x\": %.3f}",
+              first ? "" : ",\n", m.radius * m.sigma_t(), m.albedo(), m.g, radii.r_min, radii.ratio, brute, n.collisions,
+              n.strides, brute / n.collisions, cost_for_10x);
+  std::fflush(stdout);
+}
+
+stf::Medium medium(double tau, double albedo, double g) {
+  stf::Medium m;
+  m.sigma_s = 100 * albedo, m.sigma_a = 100 - m.sigma_s, m.g = g, m.radius = tau / 100;
+  return m;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   const long paths = argc > 1 ? std::atol(argv[1]) : 20000;
+  if (argc == 7) {
+    const stf::Medium m = medium(std::atof(argv[2]), std::atof(argv[3]), std::atof(argv[4]));
+    print_row(m, per_path(m, nullptr, paths).collisions, {std::atof(argv[5]), std::atof(argv[6])}, paths, true);
+    std::printf("\n");
+    return 0;
+  }
   std::printf("[\n");
   bool first = true;
   for (const double tau : {10.0, 30.0, 100.0, 300.0}) {
-    stf::Medium m;
-    m.sigma_s = 99.9, m.sigma_a = 0.1, m.g = 0.8, m.radius = tau / 100;
+    const stf::Medium m = medium(tau, 0.999, 0.8);
     const double brute = per_path(m, nullptr, paths).collisions;
     for (const double ratio : {2.0, std::sqrt(2.0), std::sqrt(std::sqrt(2.0)), 1.0})
       for (const double r_min : {1.0, 2.0, 4.0, 8.0}) {
-        const Radii radii{r_min, ratio};
-        const Counts n = per_path(m, &radii, paths);
-        const double free_bound = brute / n.collisions;
-        // The stride cost, in collisions, at which the speed-up would be 10 (negative: never).
-        const double cost_for_10x = (brute / 10 - n.collisions) / n.strides;
-        std::printf("%s  {\"tau\": %g, \"smallest_sphere_tau\": %g, \"radius_ratio\": %.4f, \"brute_collisions\": %.2f, "
-                    "\"shell_collisions\": %.2f, \"strides\": %.2f, \"speedup_free_strides\": %.2f, "
-                    "\"stride_cost_for_10x\": %.3f}",
-                    first ? "" : ",\n", tau, r_min, ratio, brute, n.collisions,
-                    n.strides, free_bound, cost_for_10x);
+        print_row(m, brute, {r_min, ratio}, paths, first);
         first = false;
-        std::fflush(stdout);
       }
   }
   std::printf("\n]\n");

@@ -1,16 +1,19 @@
 // What a stride costs, in collisions: the `c` of the bound B / (C + c N) (docs/render.md).
 // In one run, on one thread:
-//  - per entry of a pack: ns per stride (ShellSampler::jump from a random point and heading)
-//    and ns per collision (one free flight and HG turn in a medium of that entry's albedo and
-//    g), and their ratio;
+//  - per entry of a pack: ns per stride (the entry's StrideForm, and ShellSampler::jump for the
+//    ratio, each from where the last stride left) and ns per collision (one free flight and HG
+//    turn in a medium of that entry's albedo and g), and their ratio;
 //  - inside the render loop: stf render's scene (its medium given by the first entry's albedo
-//    and g, sigma_t 100, radius TAU / 100) brute force and in strides, the strided run's time
-//    split by least squares into its collisions and strides at the brute run's ns per
-//    collision.
+//    and g, sigma_t 100, radius TAU / 100) with no medium work (camera rays only: each path's
+//    set-up), brute force and in strides; each run's time less the set-up's, brute force's
+//    divided by its collisions, the strided one's less its collisions at that rate divided by
+//    its strides; and the strided render as it was before the stride form (SamplerStrides), its
+//    seconds against the stride form's in the same run.
 // JSON on stdout.
 //   stride_cost PACK [TAU] [SPP]
 #include <stf/pack.h>
 #include <stf/sampler.h>
+#include <stf/stride.h>
 
 #include <chrono>
 #include <cstdio>
@@ -47,6 +50,19 @@ double ns_per_stride(const stf::ShellSampler& s, long n, double& sink) {
   return 1e9 * seconds_since(start) / double(n);
 }
 
+// The same through the entry's stride form (what stf render draws).
+double ns_per_stride(const stf::StrideForm& s, long n, double& sink) {
+  PixelRng rng(11, 0);
+  Vec3 x{0, 0, 0}, w{0, 0, 1};
+  const auto start = Clock::now();
+  for (long i = 0; i < n; ++i) {
+    const stf::Stride e = s.jump(x, w, 1.0, [&rng] { return rng.uniform(); });
+    x = {e.point.x * 1e-3, e.point.y * 1e-3, e.point.z * 1e-3}, w = e.direction;
+  }
+  sink += x.x + w.y;
+  return 1e9 * seconds_since(start) / double(n);
+}
+
 // ns per collision of a medium of this albedo and g (a sphere too large to leave).
 double ns_per_collision(double albedo, double g, long n, double& sink) {
   stf::Medium m;
@@ -63,6 +79,48 @@ double ns_per_collision(double albedo, double g, long n, double& sink) {
   sink += x.x + throughput;
   return 1e9 * seconds_since(start) / double(n);
 }
+
+// Camera paths that find the sky at once: what every path costs before the medium.
+class SetUpOnly final : public stf::render::Method {
+ public:
+  double radiance(const Vec3&, const Vec3& direction, PixelRng&, stf::render::PathCounters&) const override {
+    return stf::render::sky_radiance(direction);
+  }
+};
+
+// The strided render as it was before the stride form, the baseline in the same run: the
+// sphere found by its free radius (a square root and a division by sigma_t per step) and the
+// stride drawn by ShellSampler::jump from four uniforms.
+class SamplerStrides final : public stf::render::Method {
+ public:
+  SamplerStrides(const stf::Medium& m, const std::vector<stf::PackEntry>& pack)
+      : medium_(m), walk_(m), spheres_(stf::render::entries_for(m, pack), "render") {}
+  double radiance(const Vec3& entry, const Vec3& direction, PixelRng& rng,
+                  stf::render::PathCounters& counters) const override {
+    Vec3 x = entry, w = direction;
+    double throughput = 1;
+    for (;;) {
+      double r = 0;
+      const int sphere = spheres_.find(medium_.sigma_t(), medium_.radius - stf::length(x), r);
+      if (sphere >= 0) {
+        const stf::ShellSampler& s = spheres_.sampler(sphere);
+        const double u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform(), u3 = rng.uniform();
+        const stf::WorldExit exit = s.jump(x, w, r, u0, u1, u2, u3);
+        x = exit.point, w = exit.direction, throughput *= s.escape_probability();
+        ++counters.strides;
+      } else {
+        if (walk_.leaves_after_flight(x, w, throughput, rng)) return throughput * stf::render::sky_radiance(w);
+        ++counters.collisions;
+      }
+      if (!stf::render::survives_roulette(throughput, rng)) return 0;
+    }
+  }
+
+ private:
+  stf::Medium medium_;
+  stf::render::CollisionWalk walk_;
+  stf::SphereLookup spheres_;
+};
 
 struct LoopRun {
   double seconds = 0, collisions = 0, strides = 0;
@@ -110,13 +168,14 @@ int main(int argc, char** argv) {
   for (std::size_t i = 0; i < pack.size(); ++i) {
     const stf::StfModel& model = pack[i].model;
     const stf::ShellSampler sampler(model);
-    const double stride = ns_per_stride(sampler, 2'000'000, sink);
+    const double sampler_stride = ns_per_stride(sampler, 2'000'000, sink);
+    const double stride = ns_per_stride(stf::StrideForm(model), 2'000'000, sink);
     const double collision = ns_per_collision(model.albedo, model.g, 10'000'000, sink);
     std::printf(
         "  {\"tau\": %g, \"albedo\": %.6g, \"g\": %g, \"ns_per_stride\": %.1f, "
-        "\"ns_per_collision\": %.1f, "
+        "\"ns_per_sampler_jump\": %.1f, \"ns_per_collision\": %.1f, "
         "\"stride_cost_collisions\": %.2f}%s\n",
-        model.tau, model.albedo, model.g, stride, collision, stride / collision,
+        model.tau, model.albedo, model.g, stride, sampler_stride, collision, stride / collision,
         i + 1 < pack.size() ? "," : "");
   }
   stf::Medium m;
@@ -125,17 +184,20 @@ int main(int argc, char** argv) {
   m.radius = tau / 100;
   const stf::render::BruteForce brute(m);
   const stf::render::ShellStrides strided(m, pack);
+  const LoopRun o = render_loop(m, SetUpOnly(), spp, sink);
   const LoopRun b = render_loop(m, brute, spp, sink), s = render_loop(m, strided, spp, sink);
-  const double ns_collision = 1e9 * b.seconds / b.collisions;
+  const LoopRun j = render_loop(m, SamplerStrides(m, pack), spp, sink);
+  const double ns_collision = 1e9 * (b.seconds - o.seconds) / b.collisions;
   const double ns_stride =
-      s.strides > 0 ? (1e9 * s.seconds - ns_collision * s.collisions) / s.strides : 0;
+      s.strides > 0 ? (1e9 * (s.seconds - o.seconds) - ns_collision * s.collisions) / s.strides : 0;
   std::printf(
-      "], \"render_loop\": {\"tau\": %g, \"spheres\": %d, \"spp\": %d, \"brute_seconds\": %.3f, "
+      "], \"render_loop\": {\"tau\": %g, \"spheres\": %d, \"spp\": %d, \"set_up_seconds\": %.3f, \"brute_seconds\": %.3f, "
       "\"brute_collisions\": %.0f, \"stf_seconds\": %.3f, \"stf_collisions\": %.0f, "
       "\"stf_strides\": %.0f, "
-      "\"ns_per_collision\": %.1f, \"ns_per_stride\": %.1f, \"stride_cost_collisions\": %.2f}, "
+      "\"ns_per_collision\": %.1f, \"ns_per_stride\": %.1f, \"stride_cost_collisions\": %.2f, "
+      "\"sampler_strides_seconds\": %.3f, \"stf_over_sampler_strides\": %.3f, \"brute_over_stf\": %.3f}, "
       "\"sink\": %g}\n",
-      tau, strided.spheres(), spp, b.seconds, b.collisions, s.seconds, s.collisions, s.strides,
-      ns_collision, ns_stride, ns_stride / ns_collision, sink);
+      tau, strided.spheres(), spp, o.seconds, b.seconds, b.collisions, s.seconds, s.collisions, s.strides,
+      ns_collision, ns_stride, ns_stride / ns_collision, j.seconds, s.seconds / j.seconds, b.seconds / s.seconds, sink);
   return 0;
 }

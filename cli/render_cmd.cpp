@@ -41,12 +41,12 @@ std::string cache_folder(const RenderOptions& o) {
   fail("no cache folder for the pack: give --cache (or set STF_CACHE_DIR)");
 }
 
-// Strides through spheres below this optical radius cost more than the collisions they
-// replace: a stride costs about as much as 4-5 collisions, and a path crosses a tau-2 sphere in
-// ~2 collisions, a tau-4 one in ~5, a tau-8 one in ~13 (docs/render.md has the measurement).
-constexpr double kSmallestStrideTau = 4;
+// What a stride of the stride form costs, in collisions (bench/stride_cost on the small spheres
+// of a render pack, docs/render.md): spheres whose crossing takes fewer collisions than this
+// cost more than they save, so the render pack starts at the smallest that takes more.
+constexpr double kStrideCost = 4.5;
 
-// The one-medium scene whose pack the render needs: spheres from tau 4 up to the whole
+// The one-medium scene whose pack the render needs: spheres from the smallest that pays up to the whole
 // sphere, certified within `tolerance` (limits as in the default scene, healpix:16).
 scene::Scene render_scene(const RenderOptions& o) {
   scene::Scene sc;
@@ -57,7 +57,8 @@ scene::Scene render_scene(const RenderOptions& o) {
   sc.settings.alpha_bins = 45;
   sc.settings.model = "hvmf:auto";
   const Medium& m = o.medium;
-  const double smallest = std::max(sc.settings.tau_skip, kSmallestStrideTau);
+  const double smallest = render::smallest_paying_tau(m.g, kStrideCost);
+  sc.settings.tau_skip = smallest;
   sc.media.push_back({"render", m.sigma_s, m.sigma_a, m.g, std::min(m.radius, smallest / m.sigma_t()), m.radius, 0});
   return sc;
 }
@@ -130,13 +131,13 @@ std::string shortest(double x) {
   return buf;
 }
 
-std::string stats_json(const render::Image& image, double precompute_seconds, int spheres) {
+std::string stats_json(const render::Image& image, double precompute_seconds, int spheres, double smallest_tau) {
   char buf[512];
   std::snprintf(buf, sizeof buf,
                 "{\"seconds\": %.6g, \"precompute_seconds\": %.6g, \"paths\": %lld, \"collisions\": %lld, "
-                "\"strides\": %lld, \"mean_radiance\": %.10g, \"spheres\": %d}\n",
+                "\"strides\": %lld, \"mean_radiance\": %.10g, \"spheres\": %d, \"smallest_sphere_tau\": %.6g}\n",
                 image.seconds, precompute_seconds, (long long)image.paths, (long long)image.collisions,
-                (long long)image.strides, image.mean_radiance(), spheres);
+                (long long)image.strides, image.mean_radiance(), spheres, smallest_tau);
   return buf;
 }
 
@@ -167,10 +168,11 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
   double precompute_seconds = 0;
   std::unique_ptr<render::Method> method;
   int spheres = 0;
+  double smallest_tau = 0;
   if (stf) {
     auto strides = std::make_unique<render::ShellStrides>(
         o.medium, o.pack.empty() ? build_pack(o, s.threads, precompute_seconds) : read_pack_option(o.pack));
-    spheres = strides->spheres();
+    spheres = strides->spheres(), smallest_tau = strides->smallest_tau();
     if (!o.pack.empty() && spheres == 0)  // most likely the pack of another medium
       fail("--pack: " + o.pack + " has no sphere of albedo " + shortest(o.medium.albedo()) + " and g " +
            shortest(o.medium.g));
@@ -186,7 +188,7 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
   stop_if_interrupted();
   write_image(image_out, image, o, s.spp, seed);
   if (png_out) write_file(*png_out, render::encode_png(render::tone_map(image.mean), image.width, image.height));
-  if (json_out) write_file(*json_out, stats_json(image, precompute_seconds, spheres));
+  if (json_out) write_file(*json_out, stats_json(image, precompute_seconds, spheres, smallest_tau));
   if (!o.quiet)
     std::fprintf(stderr,
                  "stf render: %s, %lld paths in %.3g s (%.3g collisions, %.3g strides per path), mean radiance %.6g "

@@ -2,7 +2,8 @@
 // a sphere of homogeneous medium under a uniform sky of radiance 1, path traced twice:
 //  - direct: every free flight and Henyey-Greenstein scattering tracked;
 //  - strided: wherever a precomputed sphere fits around the path's point (stf::find_entry),
-//    the path jumps to that sphere's exit (ShellSampler::jump) and its throughput takes the
+//    the path jumps to that sphere's exit (its stf::StrideForm, drawing from the renderer's own
+//    generator) and its throughput takes the
 //    sphere's escape probability; near the boundary, where none fits, it is tracked directly.
 // Both estimate the same number (radiance is picked up only where paths leave the medium), so
 // they agree within their noise if the pack's models are right.
@@ -12,6 +13,7 @@
 #include <stf/math.h>
 #include <stf/pack.h>
 #include <stf/sampler.h>
+#include <stf/stride.h>
 
 #include <cmath>
 #include <cstdio>
@@ -46,7 +48,7 @@ stf::Vec3 scatter(const stf::Vec3& w, double g, double u0, double u1) {
 
 // One camera path entering at the sphere's near pole heading +z; returns the radiance it
 // carries out (sky 1), counting the strides taken. `pack` empty: direct tracking only.
-double trace(const Medium& m, const std::vector<stf::PackEntry>& pack, const std::vector<stf::ShellSampler>& samplers,
+double trace(const Medium& m, const std::vector<stf::PackEntry>& pack, const std::vector<stf::StrideForm>& forms,
              const std::string& name, std::mt19937_64& rng, long& strides) {
   Uniform u(0.0, 1.0);
   stf::Vec3 x{0, 0, -m.radius}, w{0, 0, 1};
@@ -55,8 +57,8 @@ double trace(const Medium& m, const std::vector<stf::PackEntry>& pack, const std
     double r = 0;
     const stf::PackEntry* e = pack.empty() ? nullptr : stf::find_entry(pack, name, m.sigma_t(), m.radius - stf::length(x), r);
     if (e) {
-      const stf::ShellSampler& s = samplers[std::size_t(e - pack.data())];
-      const stf::WorldExit exit = s.jump(x, w, r, u(rng), u(rng), u(rng), u(rng));
+      const stf::StrideForm& s = forms[std::size_t(e - pack.data())];
+      const stf::Stride exit = s.jump(x, w, r, [&] { return u(rng); });
       x = exit.point, w = exit.direction;
       throughput *= s.escape_probability();
       ++strides;
@@ -97,15 +99,15 @@ int main(int argc, char** argv) {
     return 2;
   }
   // Samplers are built once per entry; they are const and thread-safe.
-  std::vector<stf::ShellSampler> samplers;
-  for (const stf::PackEntry& e : pack) samplers.emplace_back(e.model);
+  std::vector<stf::StrideForm> forms;  // built once: each model's draw resolved for strides
+  for (const stf::PackEntry& e : pack) forms.emplace_back(e.model);
 
   for (const bool strided : {false, true}) {
     std::mt19937_64 rng(strided ? 2 : 1);
     long strides = 0;
     double sum = 0, sum2 = 0;
     for (long p = 0; p < paths; ++p) {
-      const double L = trace(m, strided ? pack : std::vector<stf::PackEntry>{}, samplers, name, rng, strides);
+      const double L = trace(m, strided ? pack : std::vector<stf::PackEntry>{}, forms, name, rng, strides);
       sum += L, sum2 += L * L;
     }
     const double mean = sum / double(paths);

@@ -1,4 +1,4 @@
-// Error of a model or a raw table against a reference table (DESIGN.md "Error metrics").
+// Error of a model or a raw table against a reference table (docs/design.md, "Fitting and error").
 #pragma once
 
 #include <cstdint>

@@ -1,4 +1,4 @@
-// The fitted model's HDF5 form (CONTRACT.md "Fitted model"; layout in README.md).
+// The fitted model's HDF5 form (docs/formats.md, "Fitted model").
 #pragma once
 
 #include <string>

@@ -1,6 +1,6 @@
 // Fitting to an error tolerance: the fewest alpha bins, the coarsest direction grid and the
 // smallest model whose exit distribution is within a total variation distance of the true
-// one, certified on paths the fit never saw (DESIGN.md "Error metrics", "Held-out error").
+// one, certified on paths the fit never saw (docs/design.md, "Fitting and error").
 //
 // The tolerance is measured at the resolution of the tables given, the finest considered:
 // TV = 0.5 sum |p - m| over their (alpha bin, cell) pairs, p the true exit distribution given

@@ -1,4 +1,4 @@
-// The raw shell transport table (CONTRACT.md "Raw table") and its HDF5 form.
+// The raw shell transport table (docs/formats.md, "Raw table") and its HDF5 form.
 #pragma once
 
 #include <array>

@@ -1,4 +1,4 @@
-// The random walk of Algorithm 3.1 with DESIGN.md's corrections: analog absorption, stable HG
+// The random walk of Algorithm 3.1 with the corrections of docs/design.md: analog absorption, stable HG
 // sampling, truncation at a collision cap with its weight recorded.
 #pragma once
 

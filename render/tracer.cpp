@@ -57,6 +57,26 @@ double BruteForce::radiance(const Vec3& entry, const Vec3& direction, PixelRng& 
   }
 }
 
+double crossing_collisions(double tau, double g, int paths) {
+  Medium m;
+  m.sigma_s = 1, m.sigma_a = 0, m.g = g, m.radius = tau;
+  const CollisionWalk walk(m);
+  std::int64_t collisions = 0;
+  for (int p = 0; p < paths; ++p) {
+    PixelRng rng(0x5eed, std::uint64_t(p));
+    Vec3 x{0, 0, 0}, w{0, 0, 1};
+    double throughput = 1;
+    while (!walk.leaves_after_flight(x, w, throughput, rng)) ++collisions;
+  }
+  return double(collisions) / paths;
+}
+
+double smallest_paying_tau(double g, double stride_cost) {
+  double tau = 1;
+  while (tau < 16 && crossing_collisions(tau, g) <= stride_cost) tau *= 2;
+  return tau;
+}
+
 std::vector<PackEntry> entries_for(const Medium& m, const std::vector<PackEntry>& pack) {
   std::vector<PackEntry> mine;
   for (const PackEntry& e : pack)
@@ -65,22 +85,33 @@ std::vector<PackEntry> entries_for(const Medium& m, const std::vector<PackEntry>
 }
 
 ShellStrides::ShellStrides(const Medium& m, const std::vector<PackEntry>& pack)
-    : medium_(m), walk_(m), spheres_(entries_for(m, pack), kMediumName) {}
+    : medium_(m), walk_(m), spheres_(entries_for(m, pack), kMediumName) {
+  for (int i = 0; i < spheres_.size(); ++i) {
+    const double r = spheres_.tau(i) / m.sigma_t(), room = m.radius - r;
+    radius_.push_back(r);
+    limit2_.push_back(room >= 0 ? room * room : -1.0);
+  }
+}
+
+int ShellStrides::fitting_sphere(const Vec3& x) const {
+  // limit2_ descends: the spheres that fit are a prefix; counting has no branch to mispredict.
+  const double d2 = dot(x, x);
+  int i = -1;
+  for (double limit : limit2_) i += d2 <= limit;
+  return i;
+}
 
 double ShellStrides::radiance(const Vec3& entry, const Vec3& direction, PixelRng& rng, PathCounters& counters) const {
-  const double sigma_t = medium_.sigma_t();
   Vec3 x = entry, w = direction;
   double throughput = 1;
   for (;;) {
     // The largest precomputed sphere around x inside the medium: a path starting at its
     // centre in flight is exactly what the sphere's model describes (free paths are
     // memoryless), so the path jumps to the sphere's exit.
-    double r = 0;
-    const int sphere = spheres_.find(sigma_t, medium_.radius - length(x), r);
+    const int sphere = fitting_sphere(x);
     if (sphere >= 0) {
-      const ShellSampler& s = spheres_.sampler(sphere);
-      const double u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform(), u3 = rng.uniform();
-      const WorldExit exit = s.jump(x, w, r, u0, u1, u2, u3);
+      const StrideForm& s = spheres_.stride_form(sphere);
+      const Stride exit = s.jump(x, w, radius_[std::size_t(sphere)], [&rng] { return rng.uniform(); });
       x = exit.point, w = exit.direction;
       throughput *= s.escape_probability();
       ++counters.strides;

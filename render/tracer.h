@@ -67,12 +67,27 @@ class ShellStrides final : public Method {
   ShellStrides(const Medium& m, const std::vector<PackEntry>& pack);
   double radiance(const Vec3& entry, const Vec3& direction, PixelRng& rng, PathCounters& counters) const override;
   int spheres() const { return spheres_.size(); }
+  double smallest_tau() const { return spheres_.size() > 0 ? spheres_.tau(0) : 0.0; }
 
  private:
+  // The largest sphere that fits at x: sphere i (ascending radius) fits where |x| <= R - r_i,
+  // that is |x|^2 <= limit2_[i], so no square root waits on the path's last step.
+  int fitting_sphere(const Vec3& x) const;
+
   Medium medium_;
   CollisionWalk walk_;
   SphereLookup spheres_;  // the pack's spheres of this medium's albedo and g
+  std::vector<double> limit2_, radius_;  // per sphere: (R - r_i)^2 (-1 if it cannot fit), r_i
 };
+
+// Mean collisions of a path from the centre of a sphere of optical radius `tau` (scattering
+// with g, never absorbed) until it leaves: what one stride through that sphere replaces. A
+// fixed-seed walk of `paths` paths (its standard error about sqrt(tau^2 / paths) at most).
+double crossing_collisions(double tau, double g, int paths = 20000);
+
+// The smallest optical radius of the ladder 1, 2, 4, ... 16 whose crossing takes more collisions
+// than a stride costs (`stride_cost`, in collisions): smaller spheres cost more than they save.
+double smallest_paying_tau(double g, double stride_cost);
 
 // Entries of `pack` computed for this medium's albedo and g (relative difference below 1e-9).
 std::vector<PackEntry> entries_for(const Medium& m, const std::vector<PackEntry>& pack);

@@ -31,17 +31,4 @@ AliasTable::AliasTable(const std::vector<double>& weights) : entries_(weights.si
   for (std::int32_t i : small) entries_[i] = {weights[i] > 0 ? 1.0 : 0.0, i};
 }
 
-int AliasTable::sample(double u, double& remainder) const {
-  const double x = u * double(entries_.size());
-  const int i = std::min(int(x), int(entries_.size()) - 1);
-  const double f = x - i;
-  const Entry& e = entries_[i];
-  if (f < e.threshold) {
-    remainder = std::min(f / e.threshold, std::nextafter(1.0, 0.0));
-    return i;
-  }
-  remainder = std::min((f - e.threshold) / (1 - e.threshold), std::nextafter(1.0, 0.0));
-  return e.alias;
-}
-
 }  // namespace stf

@@ -250,7 +250,7 @@ TEST_F(Cli, FitAndEvalRejectBadInput) {
   for (const std::string& name : names) EXPECT_EQ(name.find(".tmp-"), std::string::npos) << name;
 }
 
-// stf sample's output layout (CONTRACT.md "Samples"), and --eval giving back the same pdfs.
+// stf sample's output layout (docs/formats.md, "Samples"), and --eval giving back the same pdfs.
 TEST_F(Cli, PackSampleAndEvalFollowTheContract) {
   const std::string medium = "precompute --sigma-s 3 --sigma-a 0.3 --g 0.5 --alpha-bins 9 --grid healpix:4 --quiet ";
   ASSERT_EQ(stf(medium + "--paths 20000 -o " + out("t.h5")).status, 0);

@@ -1,4 +1,4 @@
-// `stf render` (CONTRACT.md): the strided image against the brute-force one, the image layout,
+// `stf render` (docs/render.md, docs/formats.md): the strided image against the brute-force one, the image layout,
 // the PNG, and bad input.
 #include <H5Cpp.h>
 
@@ -139,7 +139,7 @@ TEST_F(Render, SameSeedSameImageForOneAndThreeThreads) {
   }
 }
 
-// The image layout of CONTRACT.md and a PNG of the stated size.
+// The image layout of docs/formats.md and a PNG of the stated size.
 TEST_F(Render, WritesTheContractLayoutAndAPng) {
   Result r = stf("render --sigma-s 7.92 --sigma-a 0.08 --g 0.5 --width 32 --height 20 --spp 4 --seed 3 --method brute "
                  "--quiet -o " + out("i.h5") +

@@ -1,4 +1,4 @@
-// Physics of the walk against exact limits (DESIGN.md "Exact checks worth knowing").
+// Physics of the walk against exact limits (docs/design.md, "Exact limits the tests check").
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -102,5 +102,22 @@ TEST(Render, CancelStopsEarly) {
   EXPECT_LT(image.paths, std::int64_t(s.width) * s.height * s.spp);
 }
 
+// A path that barely turns (g -> 1) crosses a sphere of optical radius tau on a straight
+// chord of length tau: its collisions are Poisson with mean tau. The walk of
+// crossing_collisions against that limit (4.5 standard errors of 20000 paths), more turning
+// (smaller g) keeping the path longer inside, and the ladder's break-even against it.
+TEST(Render, CrossingCollisionsHaveTheStraightPathLimit) {
+  for (double tau : {0.5, 2.0, 8.0}) EXPECT_NEAR(crossing_collisions(tau, 0.99999), tau, 4.5 * std::sqrt(tau / 20000)) << tau;
+  for (double tau : {2.0, 8.0}) {
+    EXPECT_GT(crossing_collisions(tau, 0.5), crossing_collisions(tau, 0.99999) + 0.1) << tau;
+    EXPECT_GT(crossing_collisions(tau, 0.0), crossing_collisions(tau, 0.5)) << tau;
+  }
+  // Straight paths: tau 4 takes 4 collisions, tau 8 takes 8; 1 - e^{-1} of tau-1 paths collide.
+  EXPECT_EQ(smallest_paying_tau(0.99999, 4.5), 8);
+  EXPECT_EQ(smallest_paying_tau(0.99999, 3.5), 4);
+  EXPECT_EQ(smallest_paying_tau(0.99999, 0.5), 1);
+  EXPECT_EQ(smallest_paying_tau(0.99999, 1e9), 16);
+}
+
 }  // namespace
 }  // namespace stf::render

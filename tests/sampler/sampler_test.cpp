@@ -19,6 +19,7 @@ namespace {
 
 using test::integrate;
 using test::Uniforms;
+using test::with_uncollided, test::tilted, test::blended, test::blended_by_bin, test::turned, test::hemispherical;
 
 // Directions binned around `axis`: t = 1 - cos(theta) in n_t bins on [0, t_max] (quadratic
 // spacing: finer near the axis) plus one tail bin, times n_phi azimuth bins.
@@ -79,49 +80,6 @@ TEST(Sampler, VmfLobeMatchesItsPdfChiSquare) {
                                          400000, seed);
     EXPECT_GT(r.p_value, test::kChi2Alpha) << "kappa " << kappa << ": " << r.describe();
   }
-}
-
-// A model whose bin 0 also holds an uncollided delta (40% of that bin).
-StfModel with_uncollided(StfModel m) {
-  m.uncollided_fraction = 0.4 * m.alpha_probability[0];
-  return m;
-}
-
-// Exit points crowding to either edge of their bins (stf/tilt.h), strongly in some.
-StfModel tilted(StfModel m) {
-  const double tilts[] = {-2.5, 1.0, 0.3, 0.0, -0.7, 4.0};
-  for (int b = 0; b < m.bins(); ++b) m.alpha_tilt.push_back(tilts[b % 6]);
-  return m;
-}
-
-// Bins blended with their neighbours over `width` bins (StfModel::alpha_blend).
-StfModel blended(StfModel m, int width = 1) {
-  m.alpha_blend = width;
-  return m;
-}
-
-// Bins blended over widths of their own (StfModel::alpha_blend_width); unblended bins next to
-// bins of the widest, whose hats reach into them.
-StfModel blended_by_bin(StfModel m) {
-  const int widths[] = {0, 3, 1, 2, 3, 0};
-  for (int b = 0; b < m.bins(); ++b) m.alpha_blend_width.push_back(widths[b % 6]);
-  m.alpha_blend = 3;
-  return m;
-}
-
-// Densities that turn about y with the exit angle inside their bins (StfModel::alpha_turn), some
-// against the exit point, one by 90 degrees across its bin.
-StfModel turned(StfModel m) {
-  const double rates[] = {1.5, -2.0, 3.0, 0.7, 1.0, -0.5};
-  for (int b = 0; b < m.bins(); ++b) m.alpha_turn.push_back(rates[b % 6]);
-  return m;
-}
-
-// The same lobes made hemispherical: each times its bin's outward cosine, renormalised.
-StfModel hemispherical(StfModel m) {
-  m.hemispherical = true;
-  m.rebuild_lobe_norms();
-  return m;
 }
 
 TEST(Sampler, DirectionSamplersMatchTheirPdfChiSquare) {

@@ -49,4 +49,47 @@ inline StfModel make_sh_model() {
   return m;
 }
 
+// A model whose bin 0 also holds an uncollided delta (40% of that bin).
+inline StfModel with_uncollided(StfModel m) {
+  m.uncollided_fraction = 0.4 * m.alpha_probability[0];
+  return m;
+}
+
+// Exit points crowding to either edge of their bins (stf/tilt.h), strongly in some.
+inline StfModel tilted(StfModel m) {
+  const double tilts[] = {-2.5, 1.0, 0.3, 0.0, -0.7, 4.0};
+  for (int b = 0; b < m.bins(); ++b) m.alpha_tilt.push_back(tilts[b % 6]);
+  return m;
+}
+
+// Bins blended with their neighbours over `width` bins (StfModel::alpha_blend).
+inline StfModel blended(StfModel m, int width = 1) {
+  m.alpha_blend = width;
+  return m;
+}
+
+// Bins blended over widths of their own (StfModel::alpha_blend_width); unblended bins next to
+// bins of the widest, whose hats reach into them.
+inline StfModel blended_by_bin(StfModel m) {
+  const int widths[] = {0, 3, 1, 2, 3, 0};
+  for (int b = 0; b < m.bins(); ++b) m.alpha_blend_width.push_back(widths[b % 6]);
+  m.alpha_blend = 3;
+  return m;
+}
+
+// Densities that turn about y with the exit angle inside their bins (StfModel::alpha_turn), some
+// against the exit point, one by 90 degrees across its bin.
+inline StfModel turned(StfModel m) {
+  const double rates[] = {1.5, -2.0, 3.0, 0.7, 1.0, -0.5};
+  for (int b = 0; b < m.bins(); ++b) m.alpha_turn.push_back(rates[b % 6]);
+  return m;
+}
+
+// The same lobes made hemispherical: each times its bin's outward cosine, renormalised.
+inline StfModel hemispherical(StfModel m) {
+  m.hemispherical = true;
+  m.rebuild_lobe_norms();
+  return m;
+}
+
 }  // namespace stf::test

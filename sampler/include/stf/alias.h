@@ -2,6 +2,8 @@
 // random number's unused fraction handed back for reuse.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -23,5 +25,18 @@ class AliasTable {
   };
   std::vector<Entry> entries_;
 };
+
+inline int AliasTable::sample(double u, double& remainder) const {
+  const double x = u * double(entries_.size());
+  const int i = std::min(int(x), int(entries_.size()) - 1);
+  const double f = x - i;
+  const Entry& e = entries_[i];
+  if (f < e.threshold) {
+    remainder = std::min(f / e.threshold, std::nextafter(1.0, 0.0));
+    return i;
+  }
+  remainder = std::min((f - e.threshold) / (1 - e.threshold), std::nextafter(1.0, 0.0));
+  return e.alias;
+}
 
 }  // namespace stf

@@ -1,6 +1,6 @@
 // Importance sampling of a fitted shell transport function, with exact pdfs.
 //
-// Measures (DESIGN.md): a sample is an exit point y on the unit sphere and an exit direction
+// Measures (docs/design.md): a sample is an exit point y on the unit sphere and an exit direction
 // w', in the local frame where the start direction is +z. pdf() is per unit area of the unit
 // sphere per steradian and integrates to 1 over the (4 pi)^2 domain; for the smooth part
 //   p(y, w') = P(bin of alpha) / (2 pi (cos a0 - cos a1)) * t(u) * p(R_z(-beta) w' | bin),

@@ -1,0 +1,197 @@
+// The stride form of a fitted model: one jump of a path through a precomputed sphere, for a
+// renderer's inner loop (docs/render.md, "The stride form").
+//
+// It draws what ShellSampler::sample draws, exactly, but everything that depends only on the
+// model is resolved when the form is built:
+//  - one alias table picks the part (once scattered, uncollided) or the smooth part's alpha
+//    bin, its remainder placing the exit point in the bin;
+//  - each bin keeps its cosine edges (also as 1 - cos and 1 + cos, so sin(alpha) keeps its
+//    digits near the poles), its tilt and the sine and cosine of its middle, so the turn with
+//    the exit angle needs no libm trigonometry: the angle from the middle is a short series in
+//    its half-angle tangent, its sine and cosine sincos_2pi's polynomials;
+//  - each lobe keeps its frame and its quantile's constants;
+//  - the exit point and direction reach the world through one frame, turned by the azimuth.
+// A draw takes its uniforms from the renderer's own generator, as many as it needs (6 or 7, and
+// 3 more for each retry), so no retry needs a stream of its own.
+//
+// Hemispherical lobes (a vMF lobe times its bin's outward factor) have no closed-form inverse:
+// a lobe draw is kept with the probability of its outward factor (at most 1), and redrawn
+// otherwise. That is exact; the tries per kept draw are 1 / (the lobe's mean outward factor).
+// (docs/render.md says which ways to fewer tries were measured, and why none is here.)
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "stf/alias.h"
+#include "stf/hemisphere.h"
+#include "stf/math.h"
+#include "stf/model.h"
+#include "stf/once_scattered.h"
+#include "stf/sampler.h"
+#include "stf/tilt.h"
+#include "stf/vec3.h"
+
+namespace stf {
+
+struct Stride {
+  Vec3 point;      // exit point (world, or the unit sphere's in the local frame)
+  Vec3 direction;  // exit direction
+  int component = kSmooth;
+};
+
+// atan(t) for the half-angle tangents of angles within a bin of its middle: the Taylor series,
+// to t^9 for |t| <= 0.02 (bins of 7 degrees or less; below 1e-19 off) and to t^19 for
+// |t| <= 0.15 (bins up to 34 degrees; below 3e-19 off); libm beyond.
+inline double atan_near_zero(double t) {
+  const double t2 = t * t;
+  if (std::abs(t) <= 0.02) return t + t * t2 * (-1.0 / 3 + t2 * (1.0 / 5 + t2 * (-1.0 / 7 + t2 * (1.0 / 9))));
+  if (std::abs(t) > 0.15) return std::atan(t);
+  double p = -1.0 / 19;
+  for (int k = 17; k >= 3; k -= 2) p = p * t2 + (k % 4 == 1 ? 1.0 : -1.0) / k;
+  return t + t * t2 * p;
+}
+
+// sin and cos of any angle: the Taylor series to a^13 / a^14 for |a| <= 0.3 (below 1e-20 off;
+// turns within a bin are small), else sincos_2pi's polynomials.
+inline void sincos_angle(double angle, double& s, double& c) {
+  if (std::abs(angle) <= 0.3) {
+    const double a2 = angle * angle;
+    const double sp =
+        -1.0 / 6 + a2 * (1.0 / 120 + a2 * (-1.0 / 5040 + a2 * (1.0 / 362880 + a2 * (-1.0 / 39916800 + a2 / 6227020800))));
+    const double cp =
+        -0.5 + a2 * (1.0 / 24 + a2 * (-1.0 / 720 + a2 * (1.0 / 40320 + a2 * (-1.0 / 3628800 + a2 * (1.0 / 479001600 - a2 / 87178291200)))));
+    s = angle + angle * a2 * sp, c = 1 + a2 * cp;
+    return;
+  }
+  double turns = angle * (0.5 / kPi);
+  turns -= std::floor(turns);
+  sincos_2pi(turns, s, c);
+}
+
+class StrideForm {
+ public:
+  // The model must be valid (as read_pack or fit/ produce it).
+  explicit StrideForm(const StfModel& model);
+
+  // The exit of a path at `position` heading `direction` (unit) through the sphere of
+  // `radius` around it; `uniform()` returns independent uniforms in [0, 1).
+  template <typename Uniform>
+  Stride jump(const Vec3& position, const Vec3& direction, double radius, Uniform&& uniform) const {
+    Frame f;
+    f.z = direction;
+    orthonormal_basis(direction, f.x, f.y);
+    Stride s = draw(f, uniform);
+    s.point = {position.x + radius * s.point.x, position.y + radius * s.point.y, position.z + radius * s.point.z};
+    return s;
+  }
+  // The same draw in the local frame (start at the centre of the unit sphere heading +z).
+  template <typename Uniform>
+  Stride local(Uniform&& uniform) const {
+    return draw(Frame{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, uniform);
+  }
+
+  double escape_probability() const { return escape_probability_; }
+
+ private:
+  struct Bin {
+    double c0, dc;       // cos(alpha) at the lower alpha edge, and its change across the bin
+    double om0, dom;     // the same for 1 - cos(alpha)
+    double op0, dop;     // and for 1 + cos(alpha)
+    double tilt, expm1_tilt, inv_tilt;
+    double middle, cos_middle, sin_middle;
+    double turn;         // the bin's turn rate (StfModel::alpha_turn)
+    int blend;           // blend width
+  };
+  struct Lobe {
+    Vec3 mean, b1, b2;
+    double kappa, inv_kappa, expm1_2k;
+  };
+  // A hemispherical lobe's cells: picked by their bounds, each's inverse bound.
+  struct Frame {
+    Vec3 x, y, z;
+    Vec3 operator()(const Vec3& v) const {
+      return {v.x * x.x + v.y * y.x + v.z * z.x, v.x * x.y + v.y * y.y + v.z * z.y, v.x * x.z + v.y * y.z + v.z * z.z};
+    }
+  };
+  // An exit point of bin b at the remainder r of the alias draw: cos and sin of alpha, the
+  // area fraction u and the angle from the bin's middle.
+  struct ExitAngle {
+    double cos_alpha, sin_alpha, u, from_middle;
+  };
+  ExitAngle exit_angle(const Bin& bin, double r) const;
+  // The blended bin whose density draws the direction at area fraction u of bin b.
+  int blend_pick(int b, double u, double v) const;
+  const Lobe& lobe_pick(int bin, double v) const;
+  Vec3 lobe_direction(const Lobe& l, double u, double v) const;
+  Vec3 sh_direction(int bin, double u, double v) const;
+  template <typename Uniform>
+  Vec3 direction(int bin, Uniform& uniform) const;
+  Stride singular(int outcome, double r, double u1, double u2, double u3) const;
+  // A draw on the unit sphere about the origin, in frame f (f.z the start direction): the
+  // azimuth turns f once, and the exit point and direction are read off the turned frame.
+  template <typename Uniform>
+  Stride draw(const Frame& f, Uniform& uniform) const;
+
+  int bins_ = 0, lobes_per_bin_ = 0;
+  bool sh_ = false, turns_ = false;
+  double escape_probability_ = 0;
+  AliasTable outcomes_;  // [bins] smooth bins, then the uncollided delta, then once scattered
+  std::vector<Bin> bin_;
+  std::vector<Lobe> lobe_;       // vmf: [bins * lobes]
+  std::vector<double> lobe_cdf_;  // vmf: each bin's running sums of its weights
+  std::vector<OutwardBin> outward_;  // hemispherical lobes: per bin, else empty
+  std::vector<AliasTable> cells_;  // sh: per bin, over its equal-area cells
+  int sh_nz_ = 0;
+  OnceScattered once_;
+};
+
+template <typename Uniform>
+Vec3 StrideForm::direction(int bin, Uniform& uniform) const {
+  if (sh_) {
+    const double u = uniform();
+    return sh_direction(bin, u, uniform());
+  }
+  const Lobe& l = lobe_pick(bin, uniform());
+  if (outward_.empty()) {
+    const double u = uniform();
+    return lobe_direction(l, u, uniform());
+  }
+  const OutwardBin& factor = outward_[std::size_t(bin)];
+  for (;;) {
+    const double u = uniform(), v = uniform();
+    const Vec3 w = lobe_direction(l, u, v);
+    if (uniform() < factor(w)) return w;
+  }
+}
+
+template <typename Uniform>
+Stride StrideForm::draw(const Frame& f, Uniform& uniform) const {
+  double r;
+  const int outcome = outcomes_.sample(uniform(), r);
+  if (outcome >= bins_) {
+    const double u1 = uniform(), u2 = uniform();
+    const Stride s = singular(outcome, r, u1, u2, uniform());
+    return {f(s.point), f(s.direction), s.component};
+  }
+  const Bin& bin = bin_[std::size_t(outcome)];
+  const ExitAngle a = exit_angle(bin, r);
+  double sb, cb;
+  sincos_2pi(uniform(), sb, cb);
+  const int j = bin.blend > 0 ? blend_pick(outcome, a.u, uniform()) : outcome;
+  Vec3 w = direction(j, uniform);
+  if (turns_) {
+    double st, ct;
+    sincos_angle(bin_[std::size_t(j)].turn * (a.from_middle + bin.middle - bin_[std::size_t(j)].middle), st, ct);
+    w = {ct * w.x + st * w.z, w.y, ct * w.z - st * w.x};
+  }
+  const Vec3 e1{cb * f.x.x + sb * f.y.x, cb * f.x.y + sb * f.y.y, cb * f.x.z + sb * f.y.z};
+  const Vec3 e2{cb * f.y.x - sb * f.x.x, cb * f.y.y - sb * f.x.y, cb * f.y.z - sb * f.x.z};
+  return {{a.sin_alpha * e1.x + a.cos_alpha * f.z.x, a.sin_alpha * e1.y + a.cos_alpha * f.z.y,
+           a.sin_alpha * e1.z + a.cos_alpha * f.z.z},
+          {w.x * e1.x + w.y * e2.x + w.z * f.z.x, w.x * e1.y + w.y * e2.y + w.z * f.z.y, w.x * e1.z + w.y * e2.z + w.z * f.z.z},
+          kSmooth};
+}
+
+}  // namespace stf

@@ -1,0 +1,132 @@
+#include "stf/stride.h"
+
+namespace stf {
+
+namespace {
+
+std::vector<double> outcome_weights(const StfModel& m) {
+  std::vector<double> w;
+  for (int b = 0; b < m.bins(); ++b) w.push_back(std::max(0.0, m.smooth_probability(b)));
+  w.push_back(m.uncollided_probability());
+  w.push_back(m.once_fraction);
+  return w;
+}
+
+}  // namespace
+
+StrideForm::StrideForm(const StfModel& model)
+    : bins_(model.bins()), lobes_per_bin_(model.lobes), sh_(model.kind == ModelKind::kSh),
+      turns_(!model.alpha_turn.empty()), escape_probability_(model.escape_probability),
+      outcomes_(outcome_weights(model)), sh_nz_(model.sh_nz) {
+  StfModel m = model;
+  if (m.hemispherical && m.lobe_norm.size() != m.vmf.size()) m.rebuild_lobe_norms();
+  if (m.once_fraction > 0) once_ = OnceScattered(m.tau, m.g);
+  for (int b = 0; b < bins_; ++b) {
+    const double a0 = m.alpha_edges[std::size_t(b)], a1 = m.alpha_edges[std::size_t(b) + 1];
+    const double c0 = b == 0 ? 1.0 : std::cos(a0), c1 = b + 1 == bins_ ? -1.0 : std::cos(a1);
+    // 1 - cos a = 2 sin^2(a / 2) and 1 + cos a = 2 cos^2(a / 2) keep their digits where cos a
+    // is near 1 or -1.
+    const double om0 = 2 * std::pow(std::sin(a0 / 2), 2), om1 = 2 * std::pow(std::sin(a1 / 2), 2);
+    const double op0 = 2 * std::pow(std::cos(a0 / 2), 2), op1 = b + 1 == bins_ ? 0.0 : 2 * std::pow(std::cos(a1 / 2), 2);
+    const double middle = 0.5 * (a0 + a1), tilt = m.tilt(b);
+    bin_.push_back({c0, c1 - c0, om0, om1 - om0, op0, op1 - op0, tilt, std::expm1(tilt), 1 / tilt, middle, std::cos(middle),
+                    std::sin(middle), turns_ ? m.alpha_turn[std::size_t(b)] : 0.0, m.blend_width(b)});
+    if (m.hemispherical) outward_.emplace_back(a0, a1);
+  }
+  for (std::size_t i = 0; i < m.vmf.size(); ++i) {
+    const VmfLobe& v = m.vmf[i];
+    Lobe l{v.mean, {}, {}, v.kappa, v.kappa > 0 ? 1 / v.kappa : 0.0, std::expm1(-2 * v.kappa)};
+    orthonormal_basis(v.mean, l.b1, l.b2);
+    lobe_.push_back(l);
+  }
+  for (int b = 0; b < bins_ && !sh_; ++b) {
+    double sum = 0;
+    for (int k = 0; k < lobes_per_bin_; ++k) lobe_cdf_.push_back(sum += m.vmf[std::size_t(b * lobes_per_bin_ + k)].weight);
+  }
+  const std::size_t cells = std::size_t(2) * sh_nz_ * sh_nz_;
+  for (int b = 0; b < bins_ && sh_; ++b)
+    cells_.emplace_back(std::vector<double>(m.sh_table.begin() + std::ptrdiff_t(b * cells),
+                                            m.sh_table.begin() + std::ptrdiff_t((b + 1) * cells)));
+}
+
+StrideForm::ExitAngle StrideForm::exit_angle(const Bin& bin, double r) const {
+  ExitAngle a;
+  // tilt_quantile, with log for log1p where |tilt| >= 1e-3 (the rounding of 1 + x then costs u
+  // at most 1e-13 relative) and a product for the division.
+  if (std::abs(bin.tilt) < 1e-3) {
+    a.u = tilt_quantile(bin.tilt, bin.expm1_tilt, r);
+  } else {
+    a.u = std::clamp(std::log(1 + r * bin.expm1_tilt) * bin.inv_tilt, 0.0, 1.0);
+  }
+  a.cos_alpha = bin.c0 + a.u * bin.dc;
+  a.sin_alpha = std::sqrt(std::max(0.0, (bin.om0 + a.u * bin.dom) * (bin.op0 + a.u * bin.dop)));
+  if (turns_) {
+    // alpha - middle = 2 atan(sin d / (1 + cos d)), d's sine and cosine by the angle-difference
+    // formulas: no cancellation, as |d| is at most half a bin.
+    const double s = a.sin_alpha * bin.cos_middle - a.cos_alpha * bin.sin_middle;
+    const double c = a.cos_alpha * bin.cos_middle + a.sin_alpha * bin.sin_middle;
+    a.from_middle = 2 * atan_near_zero(s / (1 + c));
+  }
+  return a;
+}
+
+int StrideForm::blend_pick(int b, double u, double v) const {
+  // The hats of StfModel::blend_weights, normalised over the bins that exist: the first bin
+  // whose running sum passes v times their total.
+  const int h = bin_[std::size_t(b)].blend, lo = std::max(0, b - h), hi = std::min(bins_ - 1, b + h);
+  const double x = b + u;
+  double total = 0;
+  for (int j = lo; j <= hi; ++j) total += std::max(0.0, 1 - std::abs(x - j - 0.5) / h);
+  double below = 0;
+  const double target = v * total;
+  for (int j = lo; j < hi; ++j) {
+    const double k = std::max(0.0, 1 - std::abs(x - j - 0.5) / h);
+    if (k > 0 && target < (below += k)) return j;
+  }
+  for (int j = hi; j > lo; --j)  // rounding: the last bin with a positive weight
+    if (1 - std::abs(x - j - 0.5) / h > 0) return j;
+  return lo;
+}
+
+const StrideForm::Lobe& StrideForm::lobe_pick(int bin, double v) const {
+  const double* cdf = &lobe_cdf_[std::size_t(bin) * lobes_per_bin_];
+  int k = 0;
+  for (int j = 0; j + 1 < lobes_per_bin_; ++j) k += cdf[j] <= v;
+  return lobe_[std::size_t(bin) * lobes_per_bin_ + k];
+}
+
+Vec3 StrideForm::lobe_direction(const Lobe& l, double u, double v) const {
+  // ShellSampler's inversion: log where kappa >= 1 (1 + t loses nothing that matters there).
+  const double t = (1 - u) * l.expm1_2k;
+  double c = l.kappa < 1e-300 ? 2 * u - 1 : 1 + (l.kappa >= 1 ? std::log(1 + t) : std::log1p(t)) * l.inv_kappa;
+  c = std::clamp(c, -1.0, 1.0);
+  double s = std::sqrt(std::max(0.0, 1 - c * c)), sp, cp;
+  sincos_2pi(v, sp, cp);
+  const double x = s * cp, y = s * sp;
+  return {x * l.b1.x + y * l.b2.x + c * l.mean.x, x * l.b1.y + y * l.b2.y + c * l.mean.y,
+          x * l.b1.z + y * l.b2.z + c * l.mean.z};
+}
+
+Vec3 StrideForm::sh_direction(int bin, double u, double v) const {
+  const int nz = sh_nz_, nphi = 2 * nz;
+  double in_cell;
+  const int cell = cells_[std::size_t(bin)].sample(u, in_cell);
+  const double z = -1 + (cell / nphi + in_cell) * 2.0 / nz, rho = std::sqrt(std::max(0.0, 1 - z * z));
+  double sp, cp;
+  sincos_2pi((cell % nphi + v) / nphi, sp, cp);
+  return {rho * cp, rho * sp, z};
+}
+
+Stride StrideForm::singular(int outcome, double r, double u1, double u2, double u3) const {
+  Stride s;
+  if (outcome == bins_) {
+    s.point = s.direction = {0, 0, 1};
+    s.component = kUncollided;
+    return s;
+  }
+  once_.sample(r, u1, u2, u3, s.point, s.direction);
+  s.component = kOnceScattered;
+  return s;
+}
+
+}  // namespace stf
