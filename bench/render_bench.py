@@ -18,7 +18,7 @@ and `frames_to_pay_off` is the precompute time over the render time one frame sa
 
 The bound (docs/render.md, "The bound: ideal strides"): build/bench/stride_bound follows the
 medium's camera paths with ideal strides on the render pack's ladder (its smallest sphere,
-ratio 2) and gives brute force's collisions B, the shell's C and the strides N per hitting
+ratio sqrt 2) and gives brute force's collisions B, the shell's C and the strides N per hitting
 path; the stride cost c, in collisions, is measured in the strided run itself (its seconds
 less its collisions at brute force's seconds per collision, per stride), and
 `bound_at_measured_cost` = B / (C + c N), `fraction_of_bound` the speed-up over it.
@@ -51,8 +51,10 @@ import numpy as np  # noqa: E402
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "tools"))
 from stf_runs import Stf  # noqa: E402
+import render_pair  # noqa: E402
 
 SIGMA_T = 100
+RATIO = 2 ** 0.5  # between neighbouring spheres of stf render's packs (kSphereRatio, cli/render_cmd.cpp)
 DENSE = [(300, 0.9999, 0.85), (1000, 0.9999, 0.85), (1000, 0.99999, 0.85)]
 
 
@@ -130,7 +132,7 @@ def add_bound(row, br, sr):
     smallest = row.get("smallest_sphere_tau", 0)
     if not os.path.exists(tool) or smallest <= 0:
         return
-    out = subprocess.run([tool, "20000", str(row["tau"]), str(row["albedo"]), str(row["g"]), str(smallest), "2"],
+    out = subprocess.run([tool, "20000", str(row["tau"]), str(row["albedo"]), str(row["g"]), str(smallest), str(RATIO)],
                          check=True, capture_output=True, text=True).stdout
     b = json.loads(out)
     row["stride_cost_collisions"] = cost
@@ -141,16 +143,17 @@ def add_bound(row, br, sr):
 
 
 def plot_images(rows, images, path):
-    fig, axes = plt.subplots(len(rows), 3, figsize=(10, 3.3 * len(rows)), squeeze=False)
+    """Per medium: brute force and strides through one radiance window in a warm map (as
+    tools/render_pair.py draws the Quick start's pair), and the block z of their difference."""
+    fig, axes = plt.subplots(len(rows), 3, figsize=(11, 3.6 * len(rows)), squeeze=False)
     for ax_row, row, (bm, sm, z) in zip(axes, rows, images):
-        vmax = max(bm.max(), sm.max())
-        tone = lambda x: 1 - np.exp(-x)  # noqa: E731 (the tone map of --png)
-        ax_row[0].imshow(tone(bm), cmap="gray", vmin=0, vmax=tone(vmax))
-        ax_row[0].set_title(f"tau {row['tau']:g}, albedo {row['albedo']:g}, g {row['g']:g}: brute force")
-        ax_row[1].imshow(tone(sm), cmap="gray", vmin=0, vmax=tone(vmax))
-        ax_row[1].set_title(f"stf ({row['spheres']} spheres)")
-        im = ax_row[2].imshow(z, cmap="coolwarm", vmin=-4.5, vmax=4.5)
-        ax_row[2].set_title(f"z, 4x4 blocks (max {row['max_block_z']:.2f})")
+        lo, hi = render_pair.window([bm, sm])
+        for ax, image, title in ((ax_row[0], bm, "brute force"), (ax_row[1], sm, f"stf ({row['spheres']} spheres)")):
+            ax.imshow(np.clip((image - lo) / (hi - lo), 0, 1) ** (1 / 1.5), cmap="inferno", vmin=0, vmax=1,
+                      interpolation="nearest")
+            ax.set_title(f"tau {row['tau']:g}, albedo {row['albedo']:g}, g {row['g']:g}: {title}", fontsize=8)
+        im = ax_row[2].imshow(z, cmap="RdBu_r", vmin=-4.5, vmax=4.5, interpolation="nearest")
+        ax_row[2].set_title(f"z, 4x4 blocks (max {row['max_block_z']:.2f})", fontsize=8)
         fig.colorbar(im, ax=ax_row[2])
         for ax in ax_row:
             ax.set_xticks([]), ax.set_yticks([])

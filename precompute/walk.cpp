@@ -103,8 +103,17 @@ void AlphaBins::bins(const double* cos_alpha, int* out, int count) const {
 }
 
 int AlphaBins::sub_bin(double cos_alpha, int b) const {
-  const double u = (cos_edges_[std::size_t(b)] - cos_alpha) / (cos_edges_[std::size_t(b)] - cos_edges_[std::size_t(b) + 1]);
-  return std::clamp(int(u * kSubBins), 0, kSubBins - 1);
+  int sub;
+  sub_bins(&cos_alpha, &b, &sub, 1);
+  return sub;
+}
+
+void AlphaBins::sub_bins(const double* cos_alpha, const int* bin, int* out, int count) const {
+  const double* edge = cos_edges_.data();
+  for (int i = 0; i < count; ++i) {  // one loop the compiler vectorises, divisions and all
+    const double u = (edge[bin[i]] - cos_alpha[i]) / (edge[bin[i]] - edge[bin[i] + 1]);
+    out[i] = std::clamp(int(u * kSubBins), 0, kSubBins - 1);
+  }
 }
 
 std::int64_t chunk_paths(std::int64_t paths) {
@@ -258,12 +267,13 @@ class EscapeBatch {
     setup_.grid->cells(dx_, dy_, dz_, cell_, n_);
     const std::size_t cells = std::size_t(setup_.grid->cell_count());
     alpha_.bins(z_, bin_, n_);
+    alpha_.sub_bins(z_, bin_, sub_, n_);
     for (int j = 0; j < n_; ++j) {
       const std::uint64_t index = 2 * (std::uint64_t(bin_[j]) * cells + std::uint64_t(cell_[j])) + std::uint64_t(half_[j]);
       tally_.escapes.push_back(index);
       if (collisions_[j] == 1) tally_.once.push_back(index);
       if (collisions_[j] == 2)
-        tally_.multiple_sub.push_back(std::uint32_t(2 * (bin_[j] * kSubBins + alpha_.sub_bin(z_[j], bin_[j])) + half_[j]));
+        tally_.multiple_sub.push_back(std::uint32_t(2 * (bin_[j] * kSubBins + sub_[j]) + half_[j]));
     }
     n_ = 0;
   }
@@ -275,7 +285,7 @@ class EscapeBatch {
   ChunkTally& tally_;
   int n_ = 0;
   double x_[kSize], y_[kSize], z_[kSize], dx_[kSize], dy_[kSize], dz_[kSize];
-  int half_[kSize], mirror_[kSize], collisions_[kSize], bin_[kSize];  // collisions: 0, 1 or 2 (two or more)
+  int half_[kSize], mirror_[kSize], collisions_[kSize], bin_[kSize], sub_[kSize];  // collisions: 0, 1 or 2 (two or more)
   std::int64_t cell_[kSize];
 };
 

@@ -44,6 +44,8 @@ class AlphaBins {
   // Which of the kSubBins equal-area parts of bin b holds cos(alpha), counted from the bin's
   // lower alpha edge.
   int sub_bin(double cos_alpha, int b) const;
+  // sub_bin() of `count` values at once, in bins `bin`.
+  void sub_bins(const double* cos_alpha, const int* bin, int* out, int count) const;
 
  private:
   std::vector<double> cos_edges_;  // decreasing, cos(pi b / n)
