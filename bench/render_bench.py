@@ -18,7 +18,7 @@ and `frames_to_pay_off` is the precompute time over the render time one frame sa
 
 The bound (docs/render.md, "The bound: ideal strides"): build/bench/stride_bound follows the
 medium's camera paths with ideal strides on the render pack's ladder (its smallest sphere,
-ratio sqrt 2) and gives brute force's collisions B, the shell's C and the strides N per hitting
+ratio 2) and gives brute force's collisions B, the shell's C and the strides N per hitting
 path; the stride cost c, in collisions, is measured in the strided run itself (its seconds
 less its collisions at brute force's seconds per collision, per stride), and
 `bound_at_measured_cost` = B / (C + c N), `fraction_of_bound` the speed-up over it.
@@ -54,7 +54,7 @@ from stf_runs import Stf  # noqa: E402
 import render_pair  # noqa: E402
 
 SIGMA_T = 100
-RATIO = 2 ** 0.5  # between neighbouring spheres of stf render's packs (kSphereRatio, cli/render_cmd.cpp)
+RATIO = 2  # between neighbouring spheres of stf render's packs (kSphereRatio, cli/render_cmd.cpp)
 DENSE = [(300, 0.9999, 0.85), (1000, 0.9999, 0.85), (1000, 0.99999, 0.85)]
 
 

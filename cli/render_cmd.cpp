@@ -45,10 +45,11 @@ std::string cache_folder(const RenderOptions& o) {
 // of a render pack, docs/render.md): spheres whose crossing takes fewer collisions than this
 // cost more than they save, so the render pack starts at the smallest that takes more.
 constexpr double kStrideCost = 4.5;
-// Neighbouring spheres of the render pack differ by this factor: at 4-5 collisions a stride,
-// the bound of ideal strides (docs/render.md) rises 13-16% from ratio 2 to sqrt 2 in every bench
-// medium, for 1.5x the precompute; 2^(1/4) would gain 8-10% more for 1.7x more precompute.
-constexpr double kSphereRatio = 1.4142135623730951;
+// Neighbouring spheres of the render pack differ by this factor. sqrt 2 raises the bound of ideal
+// strides by 13-16% at a fixed stride cost, but its strides cost more (more spheres' data in the
+// caches) and its packs 1.5-2.3x the precompute; in render_bench it did not pay on dense media
+// (docs/render.md, "Ladders from the stride cost").
+constexpr double kSphereRatio = 2;
 
 // The one-medium scene whose pack the render needs: spheres from the smallest that pays up to the whole
 // sphere, certified within `tolerance` (limits as in the default scene, healpix:16).
