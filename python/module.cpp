@@ -16,6 +16,7 @@
 #include "stf/lookup.h"
 #include "stf/pack.h"
 #include "stf/sampler.h"
+#include "stf/stride.h"
 
 namespace py = pybind11;
 
@@ -184,13 +185,40 @@ class Spheres {
 
   // One stride for every path that fits a sphere: the largest of tau <= sigma_t * free radius
   // about each position; the others keep their position and direction (sphere -1, weight 1).
+  // The draw by ShellSampler::jump from the uniforms [n, 4] of each path.
   py::dict jump(const Doubles& positions, const Doubles& directions, const Doubles& free_radii,
                 double sigma_t, const Doubles& uniforms, int threads) const {
+    const double* u = rows_of(uniforms, count_of(positions, "positions"), 4, "uniforms");
+    return strides_of(positions, directions, free_radii, sigma_t, threads,
+                      [&](int k, const Vec3& x, const Vec3& w, double r, py::ssize_t i) {
+                        const double* v = u + 4 * i;
+                        const WorldExit e = lookup_->sampler(k).jump(x, w, r, v[0], v[1], v[2], v[3]);
+                        return std::pair{e.point, e.direction};
+                      });
+  }
+
+  // The same through each sphere's stride form (stf/stride.h, what stf render draws), path i
+  // taking as many uniforms as its draw needs from its own stream (the SampleStream of `seed`
+  // from draw i 2^20, 4 2^20 uniforms apart): the same strides for any thread count.
+  py::dict stride(const Doubles& positions, const Doubles& directions, const Doubles& free_radii,
+                  double sigma_t, std::uint64_t seed, int threads) const {
+    return strides_of(positions, directions, free_radii, sigma_t, threads,
+                      [&](int k, const Vec3& x, const Vec3& w, double r, py::ssize_t i) {
+                        SampleStream stream(seed, std::uint64_t(i) << 20);
+                        const Stride e = lookup_->stride_form(k).jump(x, w, r, [&] { return stream.uniform(); });
+                        return std::pair{e.point, e.direction};
+                      });
+  }
+
+ private:
+  // The arrays of jump and stride around `draw(sphere, x, w, radius, i)`.
+  template <typename Draw>
+  py::dict strides_of(const Doubles& positions, const Doubles& directions, const Doubles& free_radii,
+                      double sigma_t, int threads, Draw draw) const {
     const py::ssize_t n = count_of(positions, "positions");
     const double *x = rows_of(positions, n, 3, "positions"),
                  *w = rows_of(directions, n, 3, "directions");
-    const double *r = rows_of(free_radii, n, 0, "free_radii"),
-                 *u = rows_of(uniforms, n, 4, "uniforms");
+    const double* r = rows_of(free_radii, n, 0, "free_radii");
     if (!(sigma_t > 0)) throw Error("sigma_t must be > 0");
     Doubles point({n, py::ssize_t(3)}), direction({n, py::ssize_t(3)}), weight(n);
     py::array_t<std::int32_t> sphere(n);
@@ -204,10 +232,8 @@ class Spheres {
           put(p, i, vec(x, i)), put(d, i, vec(w, i)), q[i] = 1;
           continue;
         }
-        const ShellSampler& s = lookup_->sampler(k[i]);
-        const double* v = u + 4 * i;
-        const WorldExit e = s.jump(vec(x, i), vec(w, i), radius, v[0], v[1], v[2], v[3]);
-        put(p, i, e.point), put(d, i, e.direction), q[i] = s.escape_probability();
+        const auto [exit_point, exit_direction] = draw(k[i], vec(x, i), vec(w, i), radius, i);
+        put(p, i, exit_point), put(d, i, exit_direction), q[i] = lookup_->sampler(k[i]).escape_probability();
       }
     });
     py::dict out;
@@ -216,7 +242,6 @@ class Spheres {
     return out;
   }
 
- private:
   std::shared_ptr<const SphereLookup> lookup_;
 };
 
@@ -321,7 +346,11 @@ void add_pack(py::module_& m) {
            "One stride per path through the largest sphere that fits its free radius: dict of "
            "point, "
            "direction, weight (the sphere's escape probability) and sphere (-1: none fits, path "
-           "unchanged)");
+           "unchanged)")
+      .def("stride", &Spheres::stride, py::arg("positions"), py::arg("directions"),
+           py::arg("free_radii"), py::arg("sigma_t"), py::arg("seed"), py::arg("threads") = 0,
+           "jump through each sphere's stride form (what stf render draws), each path's uniforms "
+           "from its own stream of `seed`");
   py::class_<Pack>(m, "Pack", "A pack of models (stf pack, stf build)")
       .def(py::init<const std::string&>(), py::arg("path"))
       .def("__len__", &Pack::size)

@@ -37,9 +37,20 @@ def chi2_p(observed, expected):
         obs[-1] += pooled_o
         exp[-1] += pooled_e
     obs, exp = np.array(obs), np.array(exp)
-    x, k = float(((obs - exp) ** 2 / exp).sum()), len(obs) - 1
+    return chi2_tail(float(((obs - exp) ** 2 / exp).sum()), len(obs) - 1)
+
+
+def chi2_tail(x, k):
+    """P(chi-square with k degrees of freedom > x), by Wilson-Hilferty."""
     z = ((x / k) ** (1 / 3) - (1 - 2 / (9 * k))) / math.sqrt(2 / (9 * k))
     return 0.5 * math.erfc(z / math.sqrt(2))
+
+
+def two_sample_p(a, b):
+    """Homogeneity of two histograms of equal totals: sum (a - b)^2 / (a + b) over the bins
+    holding 10 or more, k - 1 degrees of freedom."""
+    keep = a + b >= 10
+    return chi2_tail(float(((a[keep] - b[keep]) ** 2 / (a[keep] + b[keep])).sum()), int(keep.sum()) - 1)
 
 
 class Stf(unittest.TestCase):
@@ -161,6 +172,27 @@ class Stf(unittest.TestCase):
         self.assertTrue(np.array_equal(j["point"][: n // 2], x[: n // 2]))
         self.assertTrue(np.all(j["sphere"][n // 2:] == 0))
         self.assertTrue(np.allclose(j["weight"][n // 2:], self.model.escape_probability))
+
+    def test_strides_of_the_stride_form_draw_what_jumps_draw(self):
+        n = 200000
+        x, w, free = np.zeros((n, 3)), np.tile([0.0, 0.0, 1.0], (n, 1)), np.full(n, 0.6)
+        spheres = stf.Pack(self.path("p.stfpack")).spheres("a")
+        j = spheres.jump(x, w, free, 5.0, np.random.default_rng(3).random((n, 4)))
+        s = spheres.stride(x, w, free, 5.0, seed=4)
+        again = spheres.stride(x, w, free, 5.0, seed=4, threads=3)
+        for key in ("point", "direction", "weight", "sphere"):
+            self.assertTrue(np.array_equal(s[key], again[key]), key)  # any thread count
+            if key != "point" and key != "direction":
+                self.assertTrue(np.array_equal(s[key], j[key]), key)
+        self.assertTrue(np.allclose(np.linalg.norm(s["point"], axis=1), 0.5))  # tau 2.5 at sigma_t 5
+
+        def cells(e):  # cos(alpha) of the exit point and the exit direction's z, 12 x 12
+            h = np.histogram2d(e["point"][:, 2] / 0.5, e["direction"][:, 2], bins=12, range=[[-1, 1], [-1, 1]])
+            return h[0].ravel()
+
+        self.assertGreater(two_sample_p(cells(j), cells(s)), 1e-6)
+        other = spheres.stride(x, w, free, 5.0, seed=5)
+        self.assertFalse(np.array_equal(s["point"], other["point"]))
 
     def test_errors_carry_the_command_lines_line(self):
         with open(self.path("x.json"), "w") as f:
