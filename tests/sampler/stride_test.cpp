@@ -156,6 +156,23 @@ TEST(Stride, JumpIsTheLocalDrawInThePathsFrame) {
   }
 }
 
+// Uniforms at the ends of [0, 1), cycled from every phase: exits stay finite and unit.
+TEST(Stride, ExtremeUniformsStayFinite) {
+  const double ends[] = {0.0, 1e-300, 0.5, std::nextafter(1.0, 0.0)};
+  using namespace test;
+  for (const StfModel& model : {make_vmf_model(), make_sh_model(), with_once_scattered(with_uncollided(
+                                    blended(turned(tilted(hemispherical(make_vmf_model()))), 2)))}) {
+    const StrideForm form(model);
+    for (int start = 0; start < 256; ++start) {
+      int k = start;
+      const auto uniform = [&] { return ends[(k = (k * 5 + 3) & 1023) & 3]; };  // low bits: period 4
+      const Stride s = form.local(uniform);
+      ASSERT_NEAR(length(s.point), 1, 1e-12) << start;
+      ASSERT_NEAR(length(s.direction), 1, 1e-12) << start;
+    }
+  }
+}
+
 TEST(Stride, KernelsAgreeWithLibm) {
   for (double t = -0.15; t <= 0.15; t += 1e-4) ASSERT_NEAR(atan_near_zero(t), std::atan(t), 4e-17) << t;
   EXPECT_EQ(atan_near_zero(0.5), std::atan(0.5));
