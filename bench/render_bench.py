@@ -62,19 +62,6 @@ def medium(albedo, g):
     return {"sigma_s": SIGMA_T * albedo, "sigma_a": SIGMA_T * (1 - albedo), "g": g}
 
 
-def block_sums(image, k=4):
-    h, w = image.shape
-    return image[: h - h % k, : w - w % k].reshape(h // k, k, w // k, k).sum(axis=(1, 3))
-
-
-def block_z(a, var_a, b, var_b):
-    """z of each 4 x 4 block's difference; blocks of sky only (no variance) are NaN."""
-    var = block_sums(var_a) + block_sums(var_b)
-    diff = block_sums(a) - block_sums(b)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(var > 0, diff / np.sqrt(var), np.nan)
-
-
 def mse(image, var, ref, ref_var):
     """Error against the reference, less the reference's own variance; without one, the
     image's variance (an unbiased estimator's error)."""
@@ -113,7 +100,7 @@ def run_medium(stf, spec, a, cache, out):
             print(f"  {method:5s} {spp:5d} spp: {stats['seconds']:.3g} s, rmse {np.sqrt(max(run['mse'], 0)):.3g}",
                   file=sys.stderr)
     (bm, bv, br), (sm, sv, sr) = last["brute"], last["stf"]
-    z = block_z(sm, sv, bm, bv)
+    z = render_pair.block_z(sm, sv, bm, bv)
     row["brute_collisions_per_second"] = br["collisions"] / br["seconds"]
     row["max_block_z"] = float(np.nanmax(np.abs(z)))
     row["mean_relative_difference"] = float(sm.mean() / bm.mean() - 1)

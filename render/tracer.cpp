@@ -85,7 +85,7 @@ std::vector<PackEntry> entries_for(const Medium& m, const std::vector<PackEntry>
 }
 
 ShellStrides::ShellStrides(const Medium& m, const std::vector<PackEntry>& pack)
-    : medium_(m), walk_(m), spheres_(entries_for(m, pack), kMediumName) {
+    : walk_(m), spheres_(entries_for(m, pack), kMediumName) {
   for (int i = 0; i < spheres_.size(); ++i) {
     const double r = spheres_.tau(i) / m.sigma_t(), room = m.radius - r;
     radius_.push_back(r);

@@ -74,7 +74,6 @@ class ShellStrides final : public Method {
   // that is |x|^2 <= limit2_[i], so no square root waits on the path's last step.
   int fitting_sphere(const Vec3& x) const;
 
-  Medium medium_;
   CollisionWalk walk_;
   SphereLookup spheres_;  // the pack's spheres of this medium's albedo and g
   std::vector<double> limit2_, radius_;  // per sphere: (R - r_i)^2 (-1 if it cannot fit), r_i

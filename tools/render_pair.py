@@ -41,23 +41,21 @@ def window(images, k=4):
     return lo, max(hi, lo * (1 + 1e-6) + 1e-12)
 
 
-def block_means(x, k=4):
+def block_sums(x, k=4):
+    """Sums over k x k pixel blocks (a last partial row or column of blocks left out)."""
     h, w = x.shape
-    x = x[: h - h % k, : w - w % k]
-    return x.reshape(x.shape[0] // k, k, x.shape[1] // k, k).mean(axis=(1, 3))
+    return x[: h - h % k, : w - w % k].reshape(h // k, k, w // k, k).sum(axis=(1, 3))
+
+
+def block_means(x, k=4):
+    return block_sums(x, k) / (k * k)
 
 
 def block_z(a, var_a, b, var_b, k=4):
-    h, w = a.shape
-    cut = (slice(0, h - h % k), slice(0, w - w % k))
-
-    def sums(x):
-        x = x[cut]
-        return x.reshape(x.shape[0] // k, k, x.shape[1] // k, k).sum(axis=(1, 3))
-
-    var = sums(var_a) + sums(var_b)
+    """z of each block's difference; blocks without variance (sky alone) are NaN."""
+    var = block_sums(var_a, k) + block_sums(var_b, k)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(var > 0, (sums(a) - sums(b)) / np.sqrt(var), np.nan)
+        return np.where(var > 0, (block_sums(a, k) - block_sums(b, k)) / np.sqrt(var), np.nan)
 
 
 def main():

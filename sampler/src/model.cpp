@@ -5,6 +5,7 @@
 #include <string>
 
 #include "stf/hemisphere.h"
+#include "stf/math.h"
 #include "stf/pack.h"
 #include "stf/quadrature.h"
 #include "stf/sh.h"
@@ -18,6 +19,14 @@ int equal_area_cell(int nz, const Vec3& w) {
   phi = phi < 0 ? phi + 2 * kPi : phi;
   int col = std::clamp(int(phi / (2 * kPi) * (2 * nz)), 0, 2 * nz - 1);
   return row * 2 * nz + col;
+}
+
+Vec3 equal_area_direction(int nz, int cell, double in_cell, double v) {
+  const int nphi = 2 * nz;
+  const double z = -1 + (cell / nphi + in_cell) * 2.0 / nz, rho = std::sqrt(std::max(0.0, 1 - z * z));
+  double sp, cp;
+  sincos_2pi((cell % nphi + v) / nphi, sp, cp);
+  return {rho * cp, rho * sp, z};
 }
 
 double StfModel::outward_factor(int bin, const Vec3& w) const {
@@ -130,8 +139,7 @@ namespace {
 bool finite_in(double v, double lo, double hi) { return std::isfinite(v) && v >= lo && v <= hi; }
 }  // namespace
 
-int StfModel::blend_weights(int b, double u, int* blend_bins, double* weights) const {
-  const int width = blend_width(b);
+int blend_hats(int b, double u, int width, int bins, int* blend_bins, double* weights) {
   if (width <= 0) {
     blend_bins[0] = b, weights[0] = 1;
     return 1;
@@ -139,13 +147,17 @@ int StfModel::blend_weights(int b, double u, int* blend_bins, double* weights) c
   const double x = b + u, h = width;
   int n = 0;
   double total = 0;
-  for (int j = std::max(0, b - width); j <= std::min(bins() - 1, b + width); ++j) {
+  for (int j = std::max(0, b - width); j <= std::min(bins - 1, b + width); ++j) {
     const double k = 1 - std::abs(x - j - 0.5) / h;
     if (k <= 0) continue;
     blend_bins[n] = j, weights[n] = k, total += k, ++n;
   }
   for (int i = 0; i < n; ++i) weights[i] /= total;
   return n;
+}
+
+int StfModel::blend_weights(int b, double u, int* blend_bins, double* weights) const {
+  return blend_hats(b, u, blend_width(b), this->bins(), blend_bins, weights);
 }
 
 std::string model_error(const StfModel& m) {

@@ -28,12 +28,11 @@ ShellSampler::ShellSampler(StfModel model) : model_(std::move(model)) {
   for (std::size_t i = 0; i < model_.vmf.size(); ++i) {
     const VmfLobe& l = model_.vmf[i];
     Lobe c;
-    c.mean = l.mean, c.weight = l.weight, c.kappa = l.kappa;
-    orthonormal_basis(l.mean, c.b1, c.b2);
+    static_cast<VmfFrame&>(c) = VmfFrame(l);
+    c.weight = l.weight;
     // A hemispherical lobe is renormalised after its outward factor: its density at the mean
     // carries 1 / lobe_norm.
     c.norm = vmf_pdf(l.kappa, 1.0) / (model_.hemispherical ? model_.lobe_norm[i] : 1.0);
-    c.expm1_2k = std::expm1(-2 * l.kappa);
     lobes_.push_back(c);
   }
   for (int b = 0; b < bins && model_.kind == ModelKind::kVmf; ++b) {
@@ -68,20 +67,6 @@ double ShellSampler::direction_pdf(int bin, const Vec3& w) const {
   return model_.hemispherical ? p * outward_[std::size_t(bin)](w) : p;
 }
 
-Vec3 ShellSampler::lobe_direction(const Lobe& l, double u, double v) const {
-  // The stable inversion of sample_vmf_cos with expm1(-2 kappa) cached; log for kappa >= 1,
-  // where 1 + x loses nothing that matters (an absolute 1e-16 / kappa in c) and log is
-  // several times cheaper than log1p.
-  const double t = (1 - u) * l.expm1_2k;
-  double c = l.kappa < 1e-300 ? 2 * u - 1 : 1 + (l.kappa >= 1 ? std::log(1 + t) : std::log1p(t)) / l.kappa;
-  c = std::clamp(c, -1.0, 1.0);
-  double s = std::sqrt(std::max(0.0, 1 - c * c)), sp, cp;
-  sincos_2pi(v, sp, cp);
-  double x = s * cp, y = s * sp;  // (b1, b2, mean) is orthonormal: the result is unit to rounding
-  return {x * l.b1.x + y * l.b2.x + c * l.mean.x, x * l.b1.y + y * l.b2.y + c * l.mean.y,
-          x * l.b1.z + y * l.b2.z + c * l.mean.z};
-}
-
 int ShellSampler::sample_alpha_bin(double u, double& remainder) const { return alpha_.sample(u, remainder); }
 
 Vec3 ShellSampler::sample_direction(int bin, double u2, double u3) const {
@@ -96,25 +81,19 @@ Vec3 ShellSampler::sample_direction(int bin, double u2, double u3) const {
     const Lobe& l = lobes_[std::size_t(bin) * lobes + k];
     const double below = k > 0 ? cdf[k - 1] : 0.0;
     double remainder = l.weight > 0 ? std::clamp((u2 - below) / l.weight, 0.0, std::nextafter(1.0, 0.0)) : 0.0;
-    Vec3 w = lobe_direction(l, remainder, u3);
+    Vec3 w = l.direction(remainder, u3);
     if (!model_.hemispherical) return w;
     // The lobe times the bin's outward factor (<= 1): a lobe draw kept with that probability;
     // the acceptance and any retries come from a stream seeded from (u2, u3).
     RetryStream retry(u2, u3, 0.5, 0.25);
     const OutwardBin& factor = outward_[std::size_t(bin)];
-    while (retry.uniform() >= factor(w)) w = lobe_direction(l, retry.uniform(), retry.uniform());
+    while (retry.uniform() >= factor(w)) w = l.direction(retry.uniform(), retry.uniform());
     return w;
   }
-  // Tabulated SH: a cell by mass, then uniform in the cell: uniform in z and phi is uniform
-  // in area. What is left of u2 places z, u3 phi.
-  const int nz = model_.sh_nz, nphi = 2 * nz;
+  // Tabulated SH: a cell by mass, then uniform in the cell. What is left of u2 places z, u3 phi.
   double in_cell;
-  int cell = cells_[bin].sample(u2, in_cell);
-  int row = cell / nphi, col = cell % nphi;
-  double z = -1 + (row + in_cell) * 2.0 / nz;
-  double rho = std::sqrt(std::max(0.0, 1 - z * z)), sp, cp;
-  sincos_2pi((col + u3) / nphi, sp, cp);
-  return {rho * cp, rho * sp, z};
+  const int cell = cells_[bin].sample(u2, in_cell);
+  return equal_area_direction(model_.sh_nz, cell, in_cell, u3);
 }
 
 ExitSample ShellSampler::draw(double u0, double u1, double u2, double u3, int& bin, Vec3& local) const {

@@ -33,12 +33,7 @@ StrideForm::StrideForm(const StfModel& model)
                     std::sin(middle), turns_ ? m.alpha_turn[std::size_t(b)] : 0.0, m.blend_width(b)});
     if (m.hemispherical) outward_.emplace_back(a0, a1);
   }
-  for (std::size_t i = 0; i < m.vmf.size(); ++i) {
-    const VmfLobe& v = m.vmf[i];
-    Lobe l{v.mean, {}, {}, v.kappa, v.kappa > 0 ? 1 / v.kappa : 0.0, std::expm1(-2 * v.kappa)};
-    orthonormal_basis(v.mean, l.b1, l.b2);
-    lobe_.push_back(l);
-  }
+  for (const VmfLobe& l : m.vmf) lobe_.emplace_back(l);
   for (int b = 0; b < bins_ && !sh_; ++b) {
     double sum = 0;
     for (int k = 0; k < lobes_per_bin_; ++k) lobe_cdf_.push_back(sum += m.vmf[std::size_t(b * lobes_per_bin_ + k)].weight);
@@ -71,21 +66,14 @@ StrideForm::ExitAngle StrideForm::exit_angle(const Bin& bin, double r) const {
 }
 
 int StrideForm::blend_pick(int b, double u, double v) const {
-  // The hats of StfModel::blend_weights, normalised over the bins that exist: the first bin
-  // whose running sum passes v times their total.
-  const int h = bin_[std::size_t(b)].blend, lo = std::max(0, b - h), hi = std::min(bins_ - 1, b + h);
-  const double x = b + u;
-  double total = 0;
-  for (int j = lo; j <= hi; ++j) total += std::max(0.0, 1 - std::abs(x - j - 0.5) / h);
+  // StfModel::blend_weights's hats, picked by v.
+  int blend_bins[2 * StfModel::kMaxBlend + 1];
+  double weights[2 * StfModel::kMaxBlend + 1];
+  const int n = blend_hats(b, u, bin_[std::size_t(b)].blend, bins_, blend_bins, weights);
+  int k = 0;
   double below = 0;
-  const double target = v * total;
-  for (int j = lo; j < hi; ++j) {
-    const double k = std::max(0.0, 1 - std::abs(x - j - 0.5) / h);
-    if (k > 0 && target < (below += k)) return j;
-  }
-  for (int j = hi; j > lo; --j)  // rounding: the last bin with a positive weight
-    if (1 - std::abs(x - j - 0.5) / h > 0) return j;
-  return lo;
+  while (k + 1 < n && v >= below + weights[k]) below += weights[k++];
+  return blend_bins[k];
 }
 
 const StrideForm::Lobe& StrideForm::lobe_pick(int bin, double v) const {
@@ -95,26 +83,10 @@ const StrideForm::Lobe& StrideForm::lobe_pick(int bin, double v) const {
   return lobe_[std::size_t(bin) * lobes_per_bin_ + k];
 }
 
-Vec3 StrideForm::lobe_direction(const Lobe& l, double u, double v) const {
-  // ShellSampler's inversion: log where kappa >= 1 (1 + t loses nothing that matters there).
-  const double t = (1 - u) * l.expm1_2k;
-  double c = l.kappa < 1e-300 ? 2 * u - 1 : 1 + (l.kappa >= 1 ? std::log(1 + t) : std::log1p(t)) * l.inv_kappa;
-  c = std::clamp(c, -1.0, 1.0);
-  double s = std::sqrt(std::max(0.0, 1 - c * c)), sp, cp;
-  sincos_2pi(v, sp, cp);
-  const double x = s * cp, y = s * sp;
-  return {x * l.b1.x + y * l.b2.x + c * l.mean.x, x * l.b1.y + y * l.b2.y + c * l.mean.y,
-          x * l.b1.z + y * l.b2.z + c * l.mean.z};
-}
-
 Vec3 StrideForm::sh_direction(int bin, double u, double v) const {
-  const int nz = sh_nz_, nphi = 2 * nz;
   double in_cell;
   const int cell = cells_[std::size_t(bin)].sample(u, in_cell);
-  const double z = -1 + (cell / nphi + in_cell) * 2.0 / nz, rho = std::sqrt(std::max(0.0, 1 - z * z));
-  double sp, cp;
-  sincos_2pi((cell % nphi + v) / nphi, sp, cp);
-  return {rho * cp, rho * sp, z};
+  return equal_area_direction(sh_nz_, cell, in_cell, v);
 }
 
 Stride StrideForm::singular(int outcome, double r, double u1, double u2, double u3) const {

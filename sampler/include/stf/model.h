@@ -121,11 +121,19 @@ struct StfModel {
   std::int64_t packed_bytes() const;
 };
 
+// The hats of a blended bin: at area fraction u of bin b (of `bins`), blended over `width`
+// bins, the bins j with 1 - |b + u - j - 1/2| / width > 0 and those weights normalised; returns
+// how many (at most 2 width + 1; width 0: bin b alone).
+int blend_hats(int b, double u, int width, int bins, int* blend_bins, double* weights);
+
 // Why `m` is not a usable model (values out of range or not finite, inconsistent sizes), or
 // empty when it is. Loaders check once, so sampling code can trust what it is given.
 std::string model_error(const StfModel& m);
 
 // Cell of the equal-area (z, phi) grid with nz rows in z and 2 nz columns in phi.
 int equal_area_cell(int nz, const Vec3& w);
+// The direction at (in_cell, v) in [0, 1)^2 of such a cell: uniform in z and phi is uniform in
+// area, so uniforms give a uniform point of the cell.
+Vec3 equal_area_direction(int nz, int cell, double in_cell, double v);
 
 }  // namespace stf

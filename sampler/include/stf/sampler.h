@@ -80,15 +80,11 @@ class ShellSampler {
 
  private:
   // Per lobe, what sampling and the pdf need, computed once (as Open PGL caches them).
-  struct Lobe {
-    Vec3 mean, b1, b2;  // the lobe's frame
-    double weight, kappa;
-    double norm;        // kappa / (2 pi (1 - e^{-2 kappa})): the density at the mean
-    double expm1_2k;    // expm1(-2 kappa)
+  struct Lobe : VmfFrame {
+    double weight = 0;
+    double norm = 0;  // kappa / (2 pi (1 - e^{-2 kappa})): the density at the mean
   };
   double lobe_pdf(const Lobe& l, const Vec3& w) const;
-  // A direction of lobe l from its quantile u of cos(theta) and azimuth 2 pi v.
-  Vec3 lobe_direction(const Lobe& l, double u, double v) const;
   int alpha_bin_of(double cos_alpha) const;
   // The smooth part's density at an exit point of `bin` with cos(alpha) and the direction
   // `local` (in the exit point's x-z frame): the bin's probability spread by its tilt, times

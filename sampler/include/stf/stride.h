@@ -104,11 +104,7 @@ class StrideForm {
     double turn;         // the bin's turn rate (StfModel::alpha_turn)
     int blend;           // blend width
   };
-  struct Lobe {
-    Vec3 mean, b1, b2;
-    double kappa, inv_kappa, expm1_2k;
-  };
-  // A hemispherical lobe's cells: picked by their bounds, each's inverse bound.
+  using Lobe = VmfFrame;
   struct Frame {
     Vec3 x, y, z;
     Vec3 operator()(const Vec3& v) const {
@@ -124,7 +120,6 @@ class StrideForm {
   // The blended bin whose density draws the direction at area fraction u of bin b.
   int blend_pick(int b, double u, double v) const;
   const Lobe& lobe_pick(int bin, double v) const;
-  Vec3 lobe_direction(const Lobe& l, double u, double v) const;
   Vec3 sh_direction(int bin, double u, double v) const;
   template <typename Uniform>
   Vec3 direction(int bin, Uniform& uniform) const;
@@ -156,12 +151,12 @@ Vec3 StrideForm::direction(int bin, Uniform& uniform) const {
   const Lobe& l = lobe_pick(bin, uniform());
   if (outward_.empty()) {
     const double u = uniform();
-    return lobe_direction(l, u, uniform());
+    return l.direction(u, uniform());
   }
   const OutwardBin& factor = outward_[std::size_t(bin)];
   for (;;) {
     const double u = uniform(), v = uniform();
-    const Vec3 w = lobe_direction(l, u, v);
+    const Vec3 w = l.direction(u, v);
     if (uniform() < factor(w)) return w;
   }
 }
