@@ -1,0 +1,85 @@
+// Blend widths from held-out scores of turned neighbours (fit_stages.h).
+#include "fit_stages.h"
+
+namespace stf::fit::stages {
+
+TurnedNeighbours turned_neighbours(const BinFits& fits, const std::vector<BinTurn>& turns, const QuadratureLevels& levels,
+                                   int width, const FitSettings& s) {
+  const Table& t = *fits.table;
+  const std::vector<double>& edges = t.alpha_edges;
+  auto middle = [&](int bin) { return 0.5 * (edges[std::size_t(bin)] + edges[std::size_t(bin) + 1]); };
+  TurnedNeighbours n{width, std::vector<std::vector<std::vector<double>>>(
+                                std::size_t(t.alpha_bins), std::vector<std::vector<double>>(2 * std::size_t(width) + 1))};
+  for_each_bin(t.alpha_bins, s, [&](int b) {
+    for (int j = std::max(0, b - width); j <= std::min(t.alpha_bins - 1, b + width); ++j) {
+      if (j == b) continue;
+      const double angle = turns[std::size_t(j)].rate * (middle(b) - middle(j));
+      std::vector<VmfLobe> lobes = fits.lobes[std::size_t(j)];
+      for (VmfLobe& l : lobes) l.mean = turn_about_y(l.mean, angle);
+      n.cells[std::size_t(b)][std::size_t(j - b + width)] = lobe_cells(
+          fits, lobes, levels, both_halves(t, j), edges[std::size_t(j)] + angle, edges[std::size_t(j) + 1] + angle);
+    }
+  });
+  return n;
+}
+
+std::vector<int> widths_by_bin(const std::vector<HeldOut>& blended) {
+  const int bins = int(blended[0].bin_nll.size());
+  std::vector<int> widths(std::size_t(bins), 0);
+  for (int b = 0; b < bins; ++b) {
+    double best = 0;
+    for (std::size_t w = 1; w < blended.size(); ++w) {
+      double gain = 0;
+      for (int j = std::max(0, b - kBlendReach); j <= std::min(bins - 1, b + kBlendReach); ++j)
+        gain += (1 - double(std::abs(j - b)) / (kBlendReach + 1)) *
+                (blended[0].bin_nll[std::size_t(j)] - blended[w].bin_nll[std::size_t(j)]);
+      if (gain > best) best = gain, widths[std::size_t(b)] = int(w);
+    }
+  }
+  return widths;
+}
+
+HeldOut scores_at_widths(const std::vector<HeldOut>& blended, const std::vector<int>& widths) {
+  HeldOut h;
+  for (std::size_t b = 0; b < widths.size(); ++b) {
+    const HeldOut& at = blended[std::size_t(widths[b])];
+    h.bin_nll.push_back(at.bin_nll[b]);
+    h.nll += at.bin_nll[b];
+    h.log_p.push_back(at.log_p[b]);
+  }
+  return h;
+}
+
+BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, int max_width, const TurnedNeighbours& turned) {
+  const Table& t = e.table;
+  StfModel shape;
+  shape.alpha_probability.assign(std::size_t(t.alpha_bins), 0.0);
+  shape.alpha_tilt = fit_alpha_tilts(t, 0);
+  std::vector<std::vector<double>> p(t.alpha_bins), q(t.alpha_bins);
+  for (int b = 0; b < t.alpha_bins; ++b)
+    for (double l : flat.log_p[b]) p[b].push_back(std::exp(l));
+  BlendChoice c;
+  c.nll = {flat.nll}, c.error = {0.0};
+  std::vector<HeldOut> blended{flat};
+  for (shape.alpha_blend = 1; shape.alpha_blend <= max_width; ++shape.alpha_blend) {
+    for (int b = 0; b < t.alpha_bins; ++b)
+      q[b] = blended_cells(shape, b, [&](int j) -> const std::vector<double>& {
+        return j == b || turned.cells.empty() ? p[std::size_t(j)] : turned.at(j, b);
+      });
+    blended.push_back(score(e, 1, q));
+    c.nll.push_back(blended.back().nll);
+    c.error.push_back(difference_error(e, 1, blended.back(), flat));
+  }
+  for (int w = 1; w <= max_width; ++w)
+    if (c.nll[std::size_t(w)] < c.nll[std::size_t(c.width)] && c.nll[0] - c.nll[std::size_t(w)] > kBlendStandardErrors * c.error[std::size_t(w)])
+      c.width = w;
+  const std::vector<int> one(std::size_t(t.alpha_bins), c.width), by_bin = widths_by_bin(blended);
+  const HeldOut at_one = scores_at_widths(blended, one), at_by_bin = scores_at_widths(blended, by_bin);
+  c.by_bin_gain = at_one.nll - at_by_bin.nll;
+  c.by_bin_error = difference_error(e, 1, at_by_bin, at_one);
+  const std::vector<int>& widths = c.by_bin_gain > kBlendStandardErrors * c.by_bin_error ? by_bin : one;
+  if (std::any_of(widths.begin(), widths.end(), [](int h) { return h > 0; })) c.widths = widths;
+  return c;
+}
+
+}  // namespace stf::fit::stages

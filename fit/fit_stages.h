@@ -1,0 +1,317 @@
+// The stages fit_table() (fit_table.cpp) runs, shared by the files that hold them:
+//  - fit_escapes.cpp: a table's escapes per alpha bin (folded over the mirror, without the
+//    singular parts), the singular parts' and the rest's probabilities, absorption;
+//  - fit_bins.cpp: one pass of fitting every bin of the table or of one half, pooled or not;
+//  - fit_heldout.cpp: held-out scores, and with them the model size and the pools;
+//  - fit_blend.cpp: the blend widths, from held-out scores of turned neighbours.
+// Internal to fit/: the names live in stf::fit::stages.
+#pragma once
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <thread>
+
+#include "alpha_marginal.h"
+#include "alpha_tilt.h"
+#include "cell_probability.h"
+#include "fit_table.h"
+#include "grid.h"
+#include "mirror.h"
+#include "parallel.h"
+#include "sh_fit.h"
+#include "stf/once_scattered.h"
+#include "stf/sh.h"
+#include "vmf_fit.h"
+
+namespace stf::fit::stages {
+
+// Escaped weight per cell of alpha bin b: the full table (half < 0) or one half-table.
+std::vector<double> bin_counts(const Table& t, int half, int b);
+
+double sum(const std::vector<double>& v);
+
+// Bin b's escapes after two or more collisions, both halves: what a bin's lobes are integrated
+// against (the quadrature level of each lobe).
+double both_halves(const Table& t, int b);
+
+// The angle about y from the exit point's z axis to where escapes with these cell counts head
+// on average (their mean direction's azimuth in the x-z plane of the exit point's frame).
+double heading(const Table& t, const std::vector<double>& counts);
+
+// The escapes a fit sees per alpha bin (bin_counts), folded over the mirror symmetry of the
+// exit distribution when `image` (mirror_cells) is not empty. Folding bin by bin as the counts
+// are read keeps no second copy of the table; it keeps each bin's total.
+struct Escapes {
+  Escapes(const Table& t, std::vector<std::int64_t> mirror) : table(t), image(std::move(mirror)) {
+    for (int b = 0; b < t.alpha_bins; ++b) total.push_back(sum(bin_counts(t, -1, b)));
+  }
+  const Table& table;
+  std::vector<std::int64_t> image;
+  std::vector<double> total;  // per bin, both halves
+  // How each bin's density turns across it in fits of the whole table (empty: the bins stand
+  // still). The half-table fits that choose sizes, pools and blends stand still: turned as well,
+  // the models of tau 1 g 0.9 at 1e5 paths came out farther (five seeds: 0.0123 against 0.0119).
+  std::vector<BinTurn> turns;
+  std::vector<double> counts(int half, int b) const {
+    std::vector<double> c = bin_counts(table, half, b);
+    if (!image.empty()) fold_over_mirror(c, image);
+    return c;
+  }
+  const BinTurn* turn_of(int half, int b) const { return half < 0 && !turns.empty() ? &turns[std::size_t(b)] : nullptr; }
+  // The rates from the headings of the whole table's escapes (alpha_turns), the exit points
+  // spread by `tilts` (none: uniform in area).
+  void set_turns(const std::vector<double>& tilts) {
+    std::vector<double> headings;
+    for (int b = 0; b < table.alpha_bins; ++b) headings.push_back(heading(table, counts(-1, b)));
+    const std::vector<double> rate = alpha_turns(headings, total, table.alpha_edges);
+    for (int b = 0; b < table.alpha_bins; ++b)
+      turns.push_back({rate[std::size_t(b)], table.alpha_edges[std::size_t(b)], table.alpha_edges[std::size_t(b) + 1],
+                       tilts.empty() ? 0.0 : tilts[std::size_t(b)]});
+  }
+};
+
+double uncollided_escapes(const Table& t);
+
+// Probabilities of the exact parts, per path launched. With the once-scattered escapes tallied
+// apart (tables since format 1 with /escape/once_half) both singular parts are known exactly:
+// e^{-tau} and the one-collision quadrature; the walk's counts of them are not needed, and only
+// the escapes after two or more collisions carry Monte Carlo noise. Older tables give the
+// tallied uncollided share and no once-scattered part.
+struct SingularParts {
+  double uncollided = 0, once = 0;
+};
+
+bool singular_parts_exact(const Table& t);
+
+SingularParts singular_parts(const Table& t);
+
+// Probabilities per path of the walk's other outcomes: the escapes after two or more collisions
+// (as the factor that turns their tallied count into paths), absorption and truncation. They
+// sum to 1 with the exact singular parts. Without exact singular parts, the plain shares.
+struct RestProbabilities {
+  double fitted_scale = 1, absorbed = 0, truncated = 0;
+};
+
+// Absorption estimated with three control variates of known mean (docs/design.md, "Singular
+// parts"): the uncollided and the once-scattered indicators (means p0, p1) and
+// D = (1 - albedo) c - A over a path of c decided collisions, A its absorption (mean 0: every
+// decided collision absorbs with probability 1 - albedo, whatever came before). Their
+// covariances with each other and with A follow from the table's totals, the collisions of the
+// absorbed paths among them; the regression on all three is the linear estimator of least
+// variance, for many paths at most that of A's plain share and of (1 - albedo) c alone. Its
+// coefficients come from the same totals as the means they multiply, which biases it by O(1/n)
+// (measured about -0.9 / n per path: 9e-6 at 1e5 paths, a fifth of its standard deviation).
+// Returns -1 where the table does not tally the absorbed paths' collisions or D is constant
+// (albedo 0 or 1).
+double absorption_by_regression(const Table& t, const SingularParts& exact);
+
+// The paths that neither escaped uncollided nor after one collision split among the other
+// outcomes independently of how many they were, so each outcome's share of them times the exact
+// 1 - p0 - p1 estimates its probability with the singular parts' noise taken out (at tau 1 g 0.9,
+// albedo 0.95, the standard deviation of the escapes after two or more collisions halves).
+// Absorption then comes from the regression where the table allows it, and the escapes after two
+// or more collisions take what is left: with rare absorption (albedo near 1) the collision count
+// knows it far better than the absorbed paths do (tau 16, albedo 0.999: a tenth of the standard
+// deviation). Where no path is left after the exact parts (tiny tau or tables), nothing tallied
+// can carry the rest: it goes to absorption, which is what a renderer makes of a lost path.
+RestProbabilities rest_probabilities(const Table& t, const SingularParts& exact);
+
+// Bins whose status is kBorrowed take the parameters of the nearest fitted bin (the lower
+// one on a tie); with no fitted bin at all they become kEmpty with `uniform`.
+template <typename P>
+void fill_borrowed(std::vector<BinStatus>& status, std::vector<P>& params, const P& uniform) {
+  const int bins = int(status.size());
+  for (int b = 0; b < bins; ++b) {
+    if (status[b] != BinStatus::kBorrowed) continue;
+    int source = -1;
+    for (int d = 1; d < bins && source < 0; ++d) {
+      if (b - d >= 0 && status[b - d] == BinStatus::kFitted) source = b - d;
+      else if (b + d < bins && status[b + d] == BinStatus::kFitted) source = b + d;
+    }
+    if (source < 0) {
+      status[b] = BinStatus::kEmpty;
+      params[b] = uniform;
+    } else {
+      params[b] = params[source];
+    }
+  }
+}
+
+// Everything one pass of fitting (on the full table or one half) produces.
+struct BinFits {
+  const Table* table = nullptr;
+  bool hemispherical = false;
+  std::vector<BinTurn> turns;  // how the fitted densities turn across their bins (empty: they stand still)
+  std::vector<BinStatus> status;
+  std::vector<std::vector<VmfLobe>> lobes;  // vmf
+  std::vector<std::vector<double>> sh;      // sh: raw projections, not yet smoothed
+};
+
+// Whether bin b is sparse enough for its neighbours' escapes to pay (FitSettings::
+// pool_neighbours): pooling trades noise for bias, and measured on 1e7-path tables it moved no
+// model while its fits took four times as long.
+bool worth_pooling(const Escapes& e, int b);
+
+// Whether a half-table holds too few of bin b's escapes for `size` lobes (kEscapesPerLobe each):
+// the bin's own escapes, not the family, limit its model whatever its size, so its neighbours'
+// are worth reaching farther for (wide_pooling).
+bool capped_by_escapes(const Escapes& e, int b, int size);
+
+// Whether bin b is noisy enough for a sloped pool (PoolTry) to be worth its cost: fewer than
+// kSlopedPoolEscapesPerLobe escapes per lobe of the chosen size.
+bool noisy(const Escapes& e, int b, int size);
+
+// Which bins a pass of fit_bins pools, and how (PoolTry): bin b with the bins within its width
+// on either side (0: alone). Bins of width 0 copy their lobes from `others` when given (fitted
+// alone or chosen before, at the same size on the same half). A `trial` pass only ranks pools
+// for wide_pooling: its pooled fits stop after kPoolTryIterations.
+struct Pooling {
+  std::vector<PoolTry> bin;
+  const BinFits* others = nullptr;
+  bool trial = false;
+  bool any() const { return std::any_of(bin.begin(), bin.end(), [](const PoolTry& p) { return p.width > 0; }); }
+  PoolTry of(int b) const { return bin.empty() ? PoolTry{} : bin[std::size_t(b)]; }
+};
+
+// `start`: fits (on a half-table, of this size or smaller) to start the lobes from, or null;
+// missing lobes come from splitting the heaviest ones (grow_lobes). `pool` (vmf): a bin of
+// width w > 0 has its lobes fitted to its own escapes and, with weights pool_weight(w, d), to
+// those of the bins d <= w away, expected where the bin's go turned about y by the difference of
+// their headings (the forward peak turns with the exit point: docs/fit.md, "Neighbour
+// pooling"), and continued linearly in alpha where the pool is sloped; it gets a lobe per
+// kEscapesPerLobe of all the escapes so weighted.
+BinFits fit_bins(const Escapes& e, int half, ModelKind kind, int size, const QuadratureLevels& levels,
+                 const ShProjector* projector, const FitSettings& s, const BinFits* start = nullptr,
+                 const Pooling* pool = nullptr);
+
+// Cell probabilities of vMF lobes of `fits`' kind in a bin of edges [a0, a1] that stands still:
+// hemispherical lobes times the edges' outward factor.
+std::vector<double> lobe_cells(const BinFits& fits, const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
+                               double escapes, double a0, double a1);
+
+// Cell probabilities of bin b under fitted parameters (vMF, or clamped smoothed SH).
+std::vector<double> bin_probabilities(const BinFits& fits, int b, ModelKind kind, int size, const ShSmoothing& t,
+                                      const QuadratureLevels& levels, const std::vector<double>& sh_basis);
+
+// Held-out negative log-likelihood of half `half` under probabilities per bin, with p mixed
+// 1e-6 with the uniform density so that a cell the model calls empty costs a finite amount.
+struct HeldOut {
+  double nll = 0;
+  std::vector<double> bin_nll;             // per bin; they sum to nll
+  std::vector<std::vector<double>> log_p;  // per bin, per cell
+};
+
+HeldOut score(const Escapes& e, int half, const std::vector<std::vector<double>>& p);
+
+// Standard error of the held-out NLL difference between two models: the paths are independent,
+// so its variance is the sum over bins of the multinomial variance of sum n_c d_c.
+double difference_error(const Escapes& e, int half, const HeldOut& a, const HeldOut& b);
+
+// SH smoothings tried on held-out data: with and without the Lanczos window, times heat
+// kernels from none to strong. A plain projection (no window, t = 0) is one of them, so a
+// fit is never forced to smooth more than the data want.
+std::vector<ShSmoothing> sh_smoothings();
+
+// Fits on half 0, scores on half 1. For SH, also picks the smoothing with the lowest held-out
+// NLL; returns it in `best_t`, and the fits in `fitted`. vMF lobes start from the fits of the
+// next smaller candidate when there are any; `pool` as fit_bins.
+HeldOut heldout_for_size(const Escapes& e, const FitSettings& s, int size, const DirectionGrid& grid,
+                         const QuadratureLevels& levels, ShSmoothing& best_t, BinFits& fitted,
+                         const BinFits* smaller, const Pooling* pool = nullptr);
+
+// Neighbour pooling adds no parameter but a bias (the neighbours' escapes are not quite the
+// bin's turned), so it can only pay where noise, not the family, limits the model: where the
+// held-out NLL stopped falling before the largest size (`best`, an index into the `sizes`
+// tried), and in bins with few escapes (worth_pooling). Then the chosen size and the next are
+// fitted pooled on half 0 (the other bins as fitted alone); a pooled fit replaces the choice
+// (`size`, its half-0 `fits` and `score`) when its held-out NLL is lower (the rule of the
+// sizes). Returns each bin's pool: the nearest neighbours in the bins worth pooling when pooling
+// won, else none.
+std::vector<PoolTry> choose_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid,
+                                    const QuadratureLevels& levels, const std::vector<int>& sizes,
+                                    const std::vector<BinFits>& half_fits, std::size_t best, int& size,
+                                    BinFits& fits, HeldOut& score, FitReport& r);
+
+// What a pass of pools gains in each bin it tries: the held-out NLL the pooled fits save against
+// the choice so far, in the bin and, weighted kNeighbourGainWeight, in its two neighbours where
+// they tried the same pool. A bin's own gain is one noisy score of a few hundred escapes, and
+// the best of such scores fits the held-out half; neighbouring bins differ little, so their
+// gains say something of this bin's (tau 1 g 0.9 at 1e5 paths, five seeds: mean 0.0124 against
+// 0.0127 on the bin's own gain alone; neighbours within 2 at 1/4 further: no change).
+constexpr double kNeighbourGainWeight = 0.5;
+
+std::vector<double> pooled_gain(const Pooling& pool, const HeldOut& before, const HeldOut& pooled);
+
+// Wider pools (kPoolTries), fitted on half 0 in the bins they are tried in: sloped ones in the
+// noisy bins, where the lobes change their shape from bin to bin faster than the noise hides;
+// flat ones where the half-table escapes cannot carry the chosen size (capped_by_escapes),
+// whatever the family, and the exit distribution changes slowly with alpha. Each bin keeps a
+// pool where it gains held-out NLL over the choice so far (pooled_gain: its own escapes and,
+// at half weight, its neighbours'). `pools`,
+// `fits` and `score` (the choice so far, on half 0) are updated bin by bin.
+void wide_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid, const QuadratureLevels& levels,
+                  int size, std::vector<PoolTry>& pools, BinFits& fits, HeldOut& score);
+
+// Held-out NLL of the half-0 fits behind `flat` (its per-bin cell log-probabilities) with each
+// bin's density blended as a model of each width 0 .. max_width blends it (tilts from half 0),
+// and the width chosen; in turning models (`turned`) each neighbour's density as the sampler
+// turns it into the bin. Blending adds no parameter, but a width is kept only where its held-out
+// gain over none exceeds kBlendStandardErrors standard errors: in models whose bins stood still,
+// the forward peak near the axis turns with alpha and a mixture of neighbours broadens it, which
+// the held-out NLL, summed over all bins, could miss by a nat or two while TV grew (tau 1 g 0.9
+// at 1e5 paths, seed 4: blend 1 ahead by 1.1 standard errors, TV 0.0165 with it, 0.0133
+// without). Among the widths so kept the lowest NLL wins.
+constexpr double kBlendStandardErrors = 2;
+
+// Each bin's half-table lobes (standing still) as a turning model blends them into the bins
+// within `width` of it: bin j in bin b turned by bin j's rate from j's middle to b's (the middle
+// of the exit angles the blend spreads it over), hemispherical lobes with bin j's outward factor
+// turned with them, as the sampler turns them. Scored at their own bin instead, a neighbour's
+// peak lies a bin's turn away (6 degrees near the axis at tau 1 g 0.9), and the held-out half
+// called blends worse that bring the model closer to the reference (docs/fit.md, "Blends of
+// turning bins"). Each pair once, the bins in parallel.
+struct TurnedNeighbours {
+  int width = 0;
+  std::vector<std::vector<std::vector<double>>> cells;  // [b][j - b + width]
+  const std::vector<double>& at(int j, int b) const { return cells[std::size_t(b)][std::size_t(j - b + width)]; }
+};
+
+TurnedNeighbours turned_neighbours(const BinFits& fits, const std::vector<BinTurn>& turns, const QuadratureLevels& levels,
+                                   int width, const FitSettings& s);
+
+struct BlendChoice {
+  std::vector<double> nll, error;  // per width 0 .. max_width: held-out NLL, its SE against width 0
+  int width = 0;                   // one for every bin
+  std::vector<int> widths;         // per bin; empty: none
+  double by_bin_gain = 0, by_bin_error = 0;  // the widths by bin against one width: held-out gain, SE
+};
+
+// Widths by bin: each bin takes the width whose held-out gain over none, summed over the bins
+// within kBlendReach at hat weights 1 - |j - b| / (kBlendReach + 1), is largest (none where no
+// width gains). A bin's own gain is the score of a few hundred escapes; its neighbours' say
+// what a bin's cannot (tau 1 g 0.9 at 1e5 paths, five seeds: mean 0.0110 at reach 3, 0.0109 at
+// reach 1 but 1-3% farther than one width on media where the widest suits every bin).
+constexpr int kBlendReach = 3;
+
+std::vector<int> widths_by_bin(const std::vector<HeldOut>& blended);
+
+// The held-out scores of a model whose bin b is blended at widths[b].
+HeldOut scores_at_widths(const std::vector<HeldOut>& blended, const std::vector<int>& widths);
+
+// One width for every bin, and widths by bin where they gain over it by more than
+// kBlendStandardErrors standard errors (the widths are chosen on the half that scores them, so
+// a small gain is their selection's). Near the axis of a forward medium the density changes
+// its shape from bin to bin and wants a narrow blend, far from it the bins are noisy and want
+// the widest: tau 1 g 0.9 at 1e5 paths, five seeds, mean joint TV 0.0114 with one width, 0.0110
+// by bin; where the widest suits every bin the gain stays within noise and one width is kept.
+BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, int max_width, const TurnedNeighbours& turned);
+
+// Area-uniform alpha marginal: for a model of nothing escaping.
+std::vector<double> uniform_alpha(const std::vector<double>& edges);
+
+}  // namespace stf::fit::stages
