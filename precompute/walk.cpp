@@ -50,12 +50,13 @@ void SparseCounts::assign(const std::map<std::uint64_t, double>& counts) {
 void ChunkTally::add_to(Tally& tally) const {
   // A fine grid's table is far larger than the caches and escapes land at random cells: fetch
   // a few increments ahead so they do not each wait for memory.
-  constexpr std::size_t kAhead = 16;
+  constexpr std::size_t kAhead = 128;
   for (std::size_t i = 0; i < escapes.size(); ++i) {
     if (i + kAhead < escapes.size())
       __builtin_prefetch(&tally.counts[escapes[i + kAhead] & 1][escapes[i + kAhead] >> 1], 1);
     tally.counts[escapes[i] & 1][escapes[i] >> 1] += 1;
   }
+  for (int h = 0; h < 2; ++h) tally.counts[h][axis] += double(uncollided[h]);
   for (int h = 0; h < 2; ++h) tally.uncollided[h] += uncollided[h];
   for (std::uint64_t i : once) tally.once.add(i);
   for (std::uint32_t i : multiple_sub) tally.multiple_sub[i & 1][i >> 1] += 1;
@@ -233,21 +234,46 @@ void step(Lanes& L, const StepConstants& k) {
 class EscapeBatch {
  public:
   EscapeBatch(const WalkSetup& setup, ChunkTally& tally)
-      : setup_(setup), alpha_(setup.alpha_bins), tally_(tally) {}
+      : setup_(setup), alpha_(setup.alpha_bins), tally_(tally) {
+    x_[0] = y_[0] = z_[0] = 0;  // an uncollided escape
+    dx_[0] = dy_[0] = 0, dz_[0] = 1;
+    half_[0] = mirror_[0] = collisions_[0] = 0;
+    n_ = 1;
+    geometry();
+    setup_.grid->cells(dx_, dy_, dz_, cell_, 1);
+    alpha_.bins(z_, bin_, 1);
+    tally_.axis = std::uint64_t(bin_[0]) * std::uint64_t(setup_.grid->cell_count()) + std::uint64_t(cell_[0]);
+    n_ = 0;
+  }
   ~EscapeBatch() { flush(); }
 
-  // Queues lane i, which escapes from its last collision point along its direction.
+  // Queues lane i, which escapes from its last collision point along its direction. An
+  // uncollided escape (from the centre along +z, in thin media a third of all paths) only
+  // counts: its cell is the axis's, which the constructor found by the same steps.
   void add(const Lanes& L, int i) {
     x_[n_] = L.from_px[i], y_[n_] = L.from_py[i], z_[n_] = L.from_pz[i];
     dx_[n_] = L.from_wx[i], dy_[n_] = L.from_wy[i], dz_[n_] = L.from_wz[i];
     half_[n_] = int(L.path[i] & 1);
     mirror_[n_] = int((L.path[i] >> 1) & 1);
     collisions_[n_] = int(std::min<std::uint32_t>(L.collisions[i], 2));
-    if (L.collisions[i] == 0) ++tally_.uncollided[half_[n_]];
-    if (++n_ == kSize) flush();
+    tally_.uncollided[half_[n_]] += L.collisions[i] == 0;
+    n_ += L.collisions[i] != 0;
+    if (n_ == kSize) flush();
   }
 
   void flush() {
+    geometry();
+    setup_.grid->cells(dx_, dy_, dz_, cell_, n_);
+    alpha_.bins(z_, bin_, n_);
+    alpha_.sub_bins(z_, bin_, sub_, n_);
+    book(std::size_t(setup_.grid->cell_count()));
+    n_ = 0;
+  }
+
+ private:
+  // Replaces each queued escape's start point and direction by its exit direction in the
+  // table's frame (dx_, dy_, dz_) and its cos(alpha) (z_).
+  void geometry() {
     for (int j = 0; j < n_; ++j) {
       Vec3 w = normalize({dx_[j], dy_[j], dz_[j]}), p{x_[j], y_[j], z_[j]};
       double t = exit_distance(p, w);
@@ -264,21 +290,29 @@ class EscapeBatch {
       dx_[j] = d.x, dy_[j] = d.y, dz_[j] = d.z;
       z_[j] = exit.z;  // cos(alpha)
     }
-    setup_.grid->cells(dx_, dy_, dz_, cell_, n_);
-    const std::size_t cells = std::size_t(setup_.grid->cell_count());
-    alpha_.bins(z_, bin_, n_);
-    alpha_.sub_bins(z_, bin_, sub_, n_);
-    for (int j = 0; j < n_; ++j) {
-      const std::uint64_t index = 2 * (std::uint64_t(bin_[j]) * cells + std::uint64_t(cell_[j])) + std::uint64_t(half_[j]);
-      tally_.escapes.push_back(index);
-      if (collisions_[j] == 1) tally_.once.push_back(index);
-      if (collisions_[j] == 2)
-        tally_.multiple_sub.push_back(std::uint32_t(2 * (bin_[j] * kSubBins + sub_[j]) + half_[j]));
-    }
-    n_ = 0;
   }
 
- private:
+  // Appends the batch to the chunk's lists. Which list an escape joins besides `escapes`
+  // depends on its collisions, at random in thin media: the lists grow by masks, not branches.
+  void book(std::size_t cells) {
+    const std::size_t at = tally_.escapes.size();
+    tally_.escapes.resize(at + std::size_t(n_));
+    std::uint64_t* index = tally_.escapes.data() + at;
+    for (int j = 0; j < n_; ++j)
+      index[j] = 2 * (std::uint64_t(bin_[j]) * cells + std::uint64_t(cell_[j])) + std::uint64_t(half_[j]);
+    std::uint64_t once[kSize];
+    std::uint32_t multiple[kSize];
+    int n_once = 0, n_multiple = 0;
+    for (int j = 0; j < n_; ++j) {
+      once[n_once] = index[j];
+      multiple[n_multiple] = std::uint32_t(2 * (bin_[j] * kSubBins + sub_[j]) + half_[j]);
+      n_once += collisions_[j] == 1;
+      n_multiple += collisions_[j] == 2;
+    }
+    tally_.once.insert(tally_.once.end(), once, once + n_once);
+    tally_.multiple_sub.insert(tally_.multiple_sub.end(), multiple, multiple + n_multiple);
+  }
+
   static constexpr int kSize = 128;
   const WalkSetup& setup_;
   const AlphaBins alpha_;

@@ -97,7 +97,8 @@ struct Tally {
 // and the event counts. Threads add their chunks to one shared Tally (add_to), so a fine grid
 // costs one table, not one per thread.
 struct ChunkTally {
-  std::vector<std::uint64_t> escapes;
+  std::vector<std::uint64_t> escapes;  // all but the uncollided ones
+  std::uint64_t axis = 0;  // bin cells + cell of the uncollided escapes
   std::vector<std::uint64_t> once;  // the escapes after exactly one collision, again
   std::vector<std::uint32_t> multiple_sub;  // the others, as 2 (bin kSubBins + sub-bin) + half
   std::uint64_t uncollided[2] = {0, 0};
