@@ -24,7 +24,7 @@ area, as a perfectly fitted flat model of 45 or 18 bins would be, then compared 
 And with fitting: an hvmf:auto model of an independent 45-bin 1e7-path table against the
 90-bin reference (`model_45`: as fitted, with tilts, densities that turn with the exit point
 inside each bin and, where the held-out data chose it, blended bins; `model_45_blend` is the
-blend width, 0 for none), the model fitted with `--no-turn` (`model_45_still`: densities that
+blend width, 0 for none), the model fitted with `--ablate turn` (`model_45_still`: densities that
 stand still inside each bin), that one without blending (`model_45_tilted`) and without tilts
 either (`model_45_flat`: the model as stf built it before all three).
 
@@ -145,7 +145,7 @@ def tilted(p, singular, area, subs, group):
 
 
 def variant(model, path, tilts):
-    """The model (fitted with --no-turn) without blended bins and, unless `tilts`, without its
+    """The model (fitted with --ablate turn) without blended bins and, unless `tilts`, without its
     tilts (uniform in area inside every bin)."""
     with open(model, "rb") as src, open(path, "wb") as dst:
         dst.write(src.read())
@@ -190,7 +190,7 @@ def main():
         stf.precompute(m, a.paths, 3, table45, a.grid, BINS // 2)
         still45 = os.path.join(a.out, f"m{i}_model45_still.h5")
         stf.fit(table45, ["--model", "hvmf:auto"], model45)
-        stf.fit(table45, ["--model", "hvmf:auto", "--no-turn"], still45)
+        stf.fit(table45, ["--model", "hvmf:auto", "--ablate", "turn"], still45)
         scratch = os.path.join(a.out, "eval.json")
         row["model_45"] = stf.evaluate(model45, ref, scratch)["joint_tv_distance"]
         row["model_45_still"] = stf.evaluate(still45, ref, scratch)["joint_tv_distance"]

@@ -7,7 +7,7 @@ model is fitted to 1e5-path tables of several seeds and compared with the same i
 "worth 30x" mark). Per seed: the joint TV of the (alpha bin, cell) exit distribution (`stf eval`),
 and the TV of the alpha marginal of the escapes after two or more collisions alone (the share
 that a model takes from its smoothed marginal, a raw table from its counts), with the fit's
-seconds. Optionally the same fit with extra `stf fit` options (--variant), e.g. --raw-alpha.
+seconds. Optionally the same fit with extra `stf fit` options (--variant), e.g. --ablate=alpha-smoothing.
 
 Where the error sits: the mean of the seeds' models (their exit distributions averaged cell by
 cell, `stf eval --cells`) keeps what the models share, their bias, and averages out all but a
@@ -18,7 +18,7 @@ the peak, the shoulder and the tail.
 
 Writes OUT/seed_spread.json and prints a markdown table. Usage:
   bench/seed_spread.py [--tau 1] [--g 0.9] [--albedo 0.95] [--seeds 2,4,5,6,7]
-                       [--model hvmf:auto] [--variant=--raw-alpha] [--out DIR]
+                       [--model hvmf:auto] [--variant=--ablate=alpha-smoothing] [--out DIR]
 Needs build/stf (or $STF_BINARY) and Debian's python3-h5py and python3-numpy.
 """
 import argparse

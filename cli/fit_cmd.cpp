@@ -21,13 +21,10 @@ namespace stf::cli {
 namespace {
 
 struct FitOptions {
-  std::string table, model = "vmf:4", output, report, pack;
+  std::string table, model = "auto", output, report, pack;
   std::string threads = "0";
   int alpha_degree = -1;
-  int max_blend = StfModel::kMaxBlend;
-  bool no_pooling = false;
-  bool raw_alpha = false;
-  bool no_turn = false;
+  std::string ablate;
   double tolerance = 0;
   std::string heldout;
   bool quiet = false;
@@ -112,7 +109,10 @@ fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, cons
   return r;
 }
 
-void run_fit(const FitOptions& o, const CLI::App& cmd) {
+void run_fit(FitOptions o, const CLI::App& cmd) {
+  // The tolerance search refines one family; without --model it refines the lobes auto keeps
+  // on most media.
+  if (cmd.count("--tolerance") && !cmd.count("--model")) o.model = "hvmf:auto";
   fit::FitSettings settings;
   try {
     settings = fit::parse_model_spec(o.model);
@@ -126,11 +126,13 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
     fail("--tolerance must be a TV distance in (0, 1), got " + std::to_string(o.tolerance));
   if (!o.heldout.empty() && !cmd.count("--tolerance")) fail("--heldout applies only with --tolerance");
   settings.alpha_degree = o.alpha_degree;
-  if (o.max_blend < 0 || o.max_blend > StfModel::kMaxBlend) fail("--max-blend must be in 0..3");
-  settings.max_blend = o.max_blend;
-  settings.pool_neighbours = !o.no_pooling;
-  settings.smooth_alpha = !o.raw_alpha;
-  settings.turn = !o.no_turn;
+  if (cmd.count("--ablate")) {
+    try {
+      fit::ablate(settings, o.ablate);
+    } catch (const std::invalid_argument& e) {
+      fail(e.what());
+    }
+  }
 
   // Every output is checked (and claimed) before any work.
   std::vector<NamedFile> files{{o.table, "the table"}, {o.heldout, "--heldout"}};
@@ -239,7 +241,7 @@ void add_fit_command(CLI::App& app) {
   auto o = std::make_shared<FitOptions>();
   CLI::App* cmd = app.add_subcommand("fit", "Fit a raw table with vMF lobes or smoothed spherical harmonics");
   cmd->add_option("table", o->table, "Raw table (HDF5)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--model", o->model, "auto, vmf:K, vmf:auto, hvmf:K, hvmf:auto, sh:L or sh:auto (default vmf:4)");
+  cmd->add_option("--model", o->model, "auto, vmf:K, vmf:auto, hvmf:K, hvmf:auto, sh:L or sh:auto (default auto: what scenes and render use)");
   cmd->add_option("-o,--output", o->output, "Output model (HDF5)")->required();
   cmd->add_option("--report", o->report, "Per-bin diagnostics and model selection as JSON");
   cmd->add_option("--pack", o->pack, "Also write the model as a binary pack for the sampler");
@@ -247,17 +249,13 @@ void add_fit_command(CLI::App& app) {
   cmd->add_option("--alpha-degree", o->alpha_degree,
                   "sh: store each coefficient as a Chebyshev series of this degree in cos(alpha)")
       ->capture_default_str();
-  cmd->add_option("--max-blend", o->max_blend,
-                  "auto sizes: widest alpha blend to try, 0-3 (a pdf sums up to 2 K + 1 bins' densities)")
-      ->capture_default_str();
-  cmd->add_flag("--no-pooling", o->no_pooling,
-                "vmf and hvmf auto sizes: fit every alpha bin alone, never with its neighbours' escapes");
-  cmd->add_flag("--raw-alpha", o->raw_alpha,
-                "Keep each alpha bin's tallied escapes as the alpha marginal (not smoothed across bins)");
-  cmd->add_flag("--no-turn", o->no_turn,
-                "vmf and hvmf: keep each alpha bin's direction density still across the bin (not turning with the exit point)");
+  cmd->add_option("--ablate", o->ablate,
+                  "Fit without the named mechanisms (comma separated: mirror, pooling, wide-pools, alpha-smoothing, "
+                  "tilt, turn, blend, blend-by-bin); for measuring what each is worth (docs/fit.md, \"Ablation\")")
+      ->group("Developer");
   cmd->add_option("--tolerance", o->tolerance,
-                  "Target TV distance: fewest alpha bins, coarsest grid and smallest size that are certified within it");
+                  "Target TV distance: fewest alpha bins, coarsest grid and smallest size that are certified within it "
+                  "(one family: without --model, hvmf:auto)");
   cmd->add_option("--heldout", o->heldout, "With --tolerance: an independent table (other seed) that certifies the fit")
       ->check(CLI::ExistingFile);
   cmd->add_flag("--quiet", o->quiet, "No summary line");

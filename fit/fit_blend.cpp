@@ -50,8 +50,9 @@ HeldOut scores_at_widths(const std::vector<HeldOut>& blended, const std::vector<
   return h;
 }
 
-BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, int max_width, const TurnedNeighbours& turned) {
+BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, const FitSettings& s, const TurnedNeighbours& turned) {
   const Table& t = e.table;
+  const int max_width = s.max_blend;
   StfModel shape;
   shape.alpha_probability.assign(std::size_t(t.alpha_bins), 0.0);
   shape.alpha_tilt = fit_alpha_tilts(t, 0);
@@ -77,7 +78,8 @@ BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, int max_width, c
   const HeldOut at_one = scores_at_widths(blended, one), at_by_bin = scores_at_widths(blended, by_bin);
   c.by_bin_gain = at_one.nll - at_by_bin.nll;
   c.by_bin_error = difference_error(e, 1, at_by_bin, at_one);
-  const std::vector<int>& widths = c.by_bin_gain > kBlendStandardErrors * c.by_bin_error ? by_bin : one;
+  const bool keep_by_bin = s.blend_by_bin && c.by_bin_gain > kBlendStandardErrors * c.by_bin_error;
+  const std::vector<int>& widths = keep_by_bin ? by_bin : one;
   if (std::any_of(widths.begin(), widths.end(), [](int h) { return h > 0; })) c.widths = widths;
   return c;
 }

@@ -1,6 +1,8 @@
 // Held-out scores, and the model size and pools they choose (fit_stages.h).
 #include "fit_stages.h"
 
+#include <limits>
+
 namespace stf::fit::stages {
 
 HeldOut score(const Escapes& e, int half, const std::vector<std::vector<double>>& p) {
@@ -69,69 +71,41 @@ HeldOut heldout_for_size(const Escapes& e, const FitSettings& s, int size, const
   return best;
 }
 
-std::vector<PoolTry> choose_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid,
-                                    const QuadratureLevels& levels, const std::vector<int>& sizes,
-                                    const std::vector<BinFits>& half_fits, std::size_t best, int& size,
-                                    BinFits& fits, HeldOut& score, FitReport& r) {
-  const std::vector<int> all = auto_candidates(s.kind);
-  std::vector<PoolTry> alone(std::size_t(e.table.alpha_bins)), nearest = alone;
-  for (int b = 0; b < e.table.alpha_bins; ++b) nearest[std::size_t(b)].width = worth_pooling(e, b) ? 1 : 0;
-  if (nearest == alone || best + 1 >= all.size()) return alone;
-  const auto next = std::upper_bound(all.begin(), all.end(), size);
-  std::vector<PoolTry> chosen = alone;
-  r.pool_heldout_nll.push_back(score.nll);
-  for (int candidate : next == all.end() ? std::vector<int>{size} : std::vector<int>{size, *next}) {
-    const auto tried = std::find(sizes.begin(), sizes.end(), candidate);
-    const Pooling pool{nearest, tried == sizes.end() ? nullptr : &half_fits[std::size_t(tried - sizes.begin())]};
-    ShSmoothing unused;
-    BinFits pooled;
-    HeldOut h = heldout_for_size(e, s, candidate, grid, levels, unused, pooled, &fits, &pool);
-    if (cancelled(s)) return alone;
-    r.pool_sizes.push_back(candidate);
-    r.pool_heldout_nll.push_back(h.nll);
-    if (h.nll < score.nll) {
-      size = candidate, chosen = nearest;
-      fits = std::move(pooled), score = std::move(h);
-    }
+SizeChoice choose_size(const Escapes& e, const FitSettings& s, const DirectionGrid& grid, const QuadratureLevels& levels,
+                       FitReport& r) {
+  SizeChoice c;
+  c.size = s.size;
+  if (!s.automatic && s.kind != ModelKind::kSh) return c;
+  std::vector<int> sizes = s.automatic ? auto_candidates(s.kind) : std::vector<int>{s.size};
+  std::vector<HeldOut> scores;
+  std::vector<ShSmoothing> ts;
+  double lowest = std::numeric_limits<double>::infinity();
+  int misses = 0;
+  for (int candidate : sizes) {
+    ShSmoothing best_t;
+    BinFits fitted;
+    scores.push_back(heldout_for_size(e, s, candidate, grid, levels, best_t, fitted,
+                                      c.half_fits.empty() ? nullptr : &c.half_fits.back()));
+    c.half_fits.push_back(std::move(fitted));
+    ts.push_back(best_t);
+    if (cancelled(s)) return c;
+    if (scores.back().nll < lowest) lowest = scores.back().nll, misses = 0;
+    else if (++misses == 2) break;
   }
-  r.neighbour_weight = chosen == alone ? 0 : kNeighbourWeight;
-  return chosen;
-}
-
-std::vector<double> pooled_gain(const Pooling& pool, const HeldOut& before, const HeldOut& pooled) {
-  const int bins = int(pool.bin.size());
-  std::vector<double> gain(std::size_t(bins), 0.0);
-  for (int b = 0; b < bins; ++b)
-    for (int j = std::max(0, b - 1); j <= std::min(bins - 1, b + 1); ++j)
-      if (pool.bin[std::size_t(j)].width > 0)
-        gain[std::size_t(b)] += (j == b ? 1.0 : kNeighbourGainWeight) *
-                                (before.bin_nll[std::size_t(j)] - pooled.bin_nll[std::size_t(j)]);
-  return gain;
-}
-
-void wide_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid, const QuadratureLevels& levels,
-                  int size, std::vector<PoolTry>& pools, BinFits& fits, HeldOut& score) {
-  const int bins = e.table.alpha_bins;
-  for (const PoolTry& tried : kPoolTries) {
-    Pooling pool{std::vector<PoolTry>(std::size_t(bins)), &fits, true};
-    for (int b = 0; b < bins; ++b)
-      if ((tried.sloped ? noisy(e, b, size) : capped_by_escapes(e, b, size)) && pools[std::size_t(b)] != tried)
-        pool.bin[std::size_t(b)] = tried;
-    if (!pool.any()) continue;
-    ShSmoothing unused;
-    BinFits pooled;
-    HeldOut h = heldout_for_size(e, s, size, grid, levels, unused, pooled, &fits, &pool);
-    if (cancelled(s)) return;
-    const std::vector<double> gain = pooled_gain(pool, score, h);
-    for (int b = 0; b < bins; ++b) {
-      if (pool.bin[std::size_t(b)].width == 0 || !(gain[std::size_t(b)] > 0)) continue;
-      pools[std::size_t(b)] = tried;
-      fits.lobes[std::size_t(b)] = std::move(pooled.lobes[std::size_t(b)]);
-      score.nll += h.bin_nll[std::size_t(b)] - score.bin_nll[std::size_t(b)];
-      score.bin_nll[std::size_t(b)] = h.bin_nll[std::size_t(b)];
-      score.log_p[std::size_t(b)] = std::move(h.log_p[std::size_t(b)]);
-    }
+  sizes.resize(scores.size());
+  for (std::size_t i = 1; i < scores.size(); ++i)
+    if (scores[i].nll < scores[c.best].nll) c.best = i;
+  for (std::size_t i = 0; i < scores.size(); ++i) {
+    r.candidates.push_back(sizes[i]);
+    r.heldout_nll.push_back(scores[i].nll);
+    r.heldout_nll_error.push_back(difference_error(e, 1, scores[i], scores[c.best]));
   }
+  c.sizes = sizes;
+  c.size = sizes[c.best];
+  c.smoothing = ts[c.best];
+  c.fits = c.half_fits[c.best];
+  c.score = std::move(scores[c.best]);
+  return c;
 }
 
 }  // namespace stf::fit::stages

@@ -2,8 +2,10 @@
 //  - fit_escapes.cpp: a table's escapes per alpha bin (folded over the mirror, without the
 //    singular parts), the singular parts' and the rest's probabilities, absorption;
 //  - fit_bins.cpp: one pass of fitting every bin of the table or of one half, pooled or not;
-//  - fit_heldout.cpp: held-out scores, and with them the model size and the pools;
-//  - fit_blend.cpp: the blend widths, from held-out scores of turned neighbours.
+//  - fit_heldout.cpp: held-out scores, and with them the model size;
+//  - fit_neighbours.cpp: the pools, and what each bin takes from its neighbours;
+//  - fit_blend.cpp: the blend widths, from held-out scores of turned neighbours;
+//  - fit_model.cpp: the alpha shape, the model of the final fits and its diagnostics.
 // Internal to fit/: the names live in stf::fit::stages.
 #pragma once
 
@@ -182,8 +184,8 @@ struct Pooling {
 // missing lobes come from splitting the heaviest ones (grow_lobes). `pool` (vmf): a bin of
 // width w > 0 has its lobes fitted to its own escapes and, with weights pool_weight(w, d), to
 // those of the bins d <= w away, expected where the bin's go turned about y by the difference of
-// their headings (the forward peak turns with the exit point: docs/fit.md, "Neighbour
-// pooling"), and continued linearly in alpha where the pool is sloped; it gets a lobe per
+// their headings (the forward peak turns with the exit point: docs/fit.md, "The
+// pipeline"), and continued linearly in alpha where the pool is sloped; it gets a lobe per
 // kEscapesPerLobe of all the escapes so weighted.
 BinFits fit_bins(const Escapes& e, int half, ModelKind kind, int size, const QuadratureLevels& levels,
                  const ShProjector* projector, const FitSettings& s, const BinFits* start = nullptr,
@@ -224,18 +226,37 @@ HeldOut heldout_for_size(const Escapes& e, const FitSettings& s, int size, const
                          const QuadratureLevels& levels, ShSmoothing& best_t, BinFits& fitted,
                          const BinFits* smaller, const Pooling* pool = nullptr);
 
+// The model size: given, or the candidate with the lowest held-out NLL, an unbiased estimate of
+// the model's cross-entropy with the truth. (A rule that prefers smaller models within noise
+// would err twice toward too few parameters: the candidates are fitted to half the escapes
+// the final model is.) Candidates (auto_candidates) go up in size until two in a row fail to
+// lower the lowest held-out NLL so far: the NLL of neighbouring sizes can sit on a plateau
+// within a nat while larger sizes gain tens, and the search must not end there. vMF lobes of
+// each size start from the smaller size's. SH models also choose their smoothing here.
+struct SizeChoice {
+  std::vector<int> sizes;          // tried, in order
+  std::vector<BinFits> half_fits;  // their fits on half 0
+  std::size_t best = 0;            // the lowest held-out NLL among them
+  int size = 0;                    // chosen (pools may change it)
+  ShSmoothing smoothing;
+  BinFits fits;   // the chosen fits on half 0: where the final fit's lobes start
+  HeldOut score;  // their held-out score on half 1
+};
+
+// Fills `r`'s candidates, held-out NLLs and their errors. With neither auto nor SH: the given
+// size, nothing fitted.
+SizeChoice choose_size(const Escapes& e, const FitSettings& s, const DirectionGrid& grid, const QuadratureLevels& levels,
+                       FitReport& r);
+
 // Neighbour pooling adds no parameter but a bias (the neighbours' escapes are not quite the
 // bin's turned), so it can only pay where noise, not the family, limits the model: where the
 // held-out NLL stopped falling before the largest size (`best`, an index into the `sizes`
 // tried), and in bins with few escapes (worth_pooling). Then the chosen size and the next are
 // fitted pooled on half 0 (the other bins as fitted alone); a pooled fit replaces the choice
-// (`size`, its half-0 `fits` and `score`) when its held-out NLL is lower (the rule of the
-// sizes). Returns each bin's pool: the nearest neighbours in the bins worth pooling when pooling
+// (its size, half-0 fits and score) when its held-out NLL is lower (the rule of the sizes). Returns each bin's pool: the nearest neighbours in the bins worth pooling when pooling
 // won, else none.
 std::vector<PoolTry> choose_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid,
-                                    const QuadratureLevels& levels, const std::vector<int>& sizes,
-                                    const std::vector<BinFits>& half_fits, std::size_t best, int& size,
-                                    BinFits& fits, HeldOut& score, FitReport& r);
+                                    const QuadratureLevels& levels, SizeChoice& choice, FitReport& r);
 
 // What a pass of pools gains in each bin it tries: the held-out NLL the pooled fits save against
 // the choice so far, in the bin and, weighted kNeighbourGainWeight, in its two neighbours where
@@ -252,10 +273,10 @@ std::vector<double> pooled_gain(const Pooling& pool, const HeldOut& before, cons
 // flat ones where the half-table escapes cannot carry the chosen size (capped_by_escapes),
 // whatever the family, and the exit distribution changes slowly with alpha. Each bin keeps a
 // pool where it gains held-out NLL over the choice so far (pooled_gain: its own escapes and,
-// at half weight, its neighbours'). `pools`,
-// `fits` and `score` (the choice so far, on half 0) are updated bin by bin.
+// at half weight, its neighbours'). `pools` and the choice's half-0 fits and score are updated
+// bin by bin.
 void wide_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid, const QuadratureLevels& levels,
-                  int size, std::vector<PoolTry>& pools, BinFits& fits, HeldOut& score);
+                  SizeChoice& choice, std::vector<PoolTry>& pools);
 
 // Held-out NLL of the half-0 fits behind `flat` (its per-bin cell log-probabilities) with each
 // bin's density blended as a model of each width 0 .. max_width blends it (tilts from half 0),
@@ -273,8 +294,8 @@ constexpr double kBlendStandardErrors = 2;
 // of the exit angles the blend spreads it over), hemispherical lobes with bin j's outward factor
 // turned with them, as the sampler turns them. Scored at their own bin instead, a neighbour's
 // peak lies a bin's turn away (6 degrees near the axis at tau 1 g 0.9), and the held-out half
-// called blends worse that bring the model closer to the reference (docs/fit.md, "Blends of
-// turning bins"). Each pair once, the bins in parallel.
+// called blends worse that bring the model closer to the reference (docs/studies/2026-12-fit-measurements.md,
+// "Densities that turn with the exit point, and blends of turning bins"). Each pair once, the bins in parallel.
 struct TurnedNeighbours {
   int width = 0;
   std::vector<std::vector<std::vector<double>>> cells;  // [b][j - b + width]
@@ -303,13 +324,49 @@ std::vector<int> widths_by_bin(const std::vector<HeldOut>& blended);
 // The held-out scores of a model whose bin b is blended at widths[b].
 HeldOut scores_at_widths(const std::vector<HeldOut>& blended, const std::vector<int>& widths);
 
-// One width for every bin, and widths by bin where they gain over it by more than
-// kBlendStandardErrors standard errors (the widths are chosen on the half that scores them, so
-// a small gain is their selection's). Near the axis of a forward medium the density changes
-// its shape from bin to bin and wants a narrow blend, far from it the bins are noisy and want
-// the widest: tau 1 g 0.9 at 1e5 paths, five seeds, mean joint TV 0.0114 with one width, 0.0110
-// by bin; where the widest suits every bin the gain stays within noise and one width is kept.
-BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, int max_width, const TurnedNeighbours& turned);
+// One width (0 .. s.max_blend) for every bin, and widths by bin where they gain over it by more
+// than kBlendStandardErrors standard errors (the widths are chosen on the half that scores them,
+// so a small gain is their selection's; never without s.blend_by_bin). Near the axis of a
+// forward medium the density changes its shape from bin to bin and wants a narrow blend, far
+// from it the bins are noisy and want the widest; where the widest suits every bin the gain
+// stays within noise and one width is kept.
+BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, const FitSettings& s, const TurnedNeighbours& turned);
+
+// How each bin borrows from its neighbours: the pools its final fit reaches into, and the
+// width of the blend its sampler spreads it with. vmf/hvmf auto: pooling (choose_pooling) and,
+// for hvmf, wider pools bin by bin (wide_pooling; with plain lobes they came out worse on one
+// medium of the study, docs/studies/2026-12-fit-measurements.md, "Pools chosen bin by bin");
+// every auto model: the blend widths (choose_blend), each neighbour turned as the sampler turns
+// it. Updates the choice's size, fits and score where a pool wins.
+struct Neighbours {
+  Pooling pool;
+  std::vector<int> blend_widths;  // per bin; empty: none
+};
+
+Neighbours choose_neighbours(const Escapes& e, const FitSettings& s, const DirectionGrid& grid,
+                             const QuadratureLevels& levels, SizeChoice& choice, FitReport& r);
+
+// The exit points inside each bin: the alpha marginal (smoothed unless ablated) and each bin's
+// tilt. For vMF lobes, also how each bin's density turns with them (set on `e`): the final fit
+// sees a bin's counts as its density averaged over its exit points, turned as the sampler turns
+// it.
+struct AlphaShape {
+  AlphaMarginal marginal;
+  std::vector<double> tilts;
+};
+
+AlphaShape alpha_shape(Escapes& e, const FitSettings& s);
+
+// The model of the final fits: the medium, the singular parts and the rest's probabilities
+// (rest_probabilities), the alpha marginal, tilts, turns and blends, and each bin's lobes or
+// smoothed SH (compressed across alpha where asked).
+StfModel assemble_model(const Escapes& e, const FitSettings& s, const AlphaShape& alpha, const SizeChoice& choice,
+                        const Neighbours& near, const BinFits& fits);
+
+// Per bin, the model as a sampler uses it against the full table: escapes, lobes with weight,
+// Poisson deviance and Pearson chi^2 per degree of freedom (fitted bins only).
+void diagnose(const BinFits& fits, const FitSettings& s, const StfModel& m, const QuadratureLevels& levels, int size,
+              FitReport& r);
 
 // Area-uniform alpha marginal: for a model of nothing escaping.
 std::vector<double> uniform_alpha(const std::vector<double>& edges);

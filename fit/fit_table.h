@@ -33,6 +33,15 @@ struct FitSettings {
   // vmf/hvmf: whether each bin's density turns with the exit angle inside the bin, at the rate
   // its smoothed heading turns (StfModel::alpha_turn, alpha_turns).
   bool turn = true;
+  // Whether each bin's exit points get a fitted tilt in area (StfModel::alpha_tilt) rather than
+  // spreading uniformly.
+  bool tilt = true;
+  // hvmf auto: whether flat pools wider than the nearest neighbours are tried bin by bin
+  // (wide_pooling).
+  bool wide_pools = true;
+  // auto: whether blend widths may differ from bin to bin (StfModel::alpha_blend_width) rather
+  // than one width for all.
+  bool blend_by_bin = true;
   // When set (e.g. by Ctrl-C), no further bin is started and fit_table returns early with a
   // model that must be thrown away.
   const std::atomic<bool>* cancel = nullptr;
@@ -42,6 +51,15 @@ struct FitSettings {
 // 0 <= L <= 32). Throws
 // std::invalid_argument naming --model and what is allowed.
 FitSettings parse_model_spec(const std::string& spec);
+
+// The mechanisms the fit can be run without, by name (stf fit --ablate, for bench/ablation.py):
+// mirror, pooling, wide-pools, alpha-smoothing, tilt, turn, blend, blend-by-bin.
+inline constexpr const char* kAblations[] = {"mirror", "pooling", "wide-pools", "alpha-smoothing",
+                                             "tilt", "turn", "blend", "blend-by-bin"};
+
+// Turns off the mechanisms named in `list` (comma separated, from kAblations). Throws
+// std::invalid_argument naming --ablate and what is allowed.
+void ablate(FitSettings& settings, const std::string& list);
 
 // The weight of each of a bin's two neighbours in a pooled fit (FitSettings::pool_neighbours),
 // and the escapes (after two or more collisions, both halves) below which a bin is pooled.
@@ -59,7 +77,7 @@ struct PoolTry {
 };
 // A triangle in the distance d (bins): the nearest neighbours of width 1 count kNeighbourWeight.
 inline constexpr double pool_weight(int width, int d) { return 1 - d / double(width + 1); }
-// The pools tried bin by bin after the size (docs/fit.md, "Neighbour pooling"): sloped in noisy
+// The pools tried bin by bin after the size (docs/fit.md, "The pipeline"): sloped in noisy
 // bins (fewer than kSlopedPoolEscapesPerLobe escapes per lobe), flat and wide in bins whose
 // half-table escapes cannot carry the size.
 inline constexpr PoolTry kPoolTries[] = {{3, true}, {4, false}};
@@ -132,11 +150,6 @@ struct FitReport {
   double alpha_penalty = -1;
   double fit_time_s = 0;
 };
-
-// Fits every SH coefficient across the fitted bins as a Chebyshev series of degree
-// model.alpha_degree in cos(alpha) at the bin centres, least squares weighted by each bin's
-// escapes, and replaces the bins' coefficients by its values.
-void compress_across_alpha(StfModel& model, const std::vector<double>& escapes);
 
 StfModel fit_table(const Table& table, const FitSettings& settings, FitReport* report = nullptr);
 

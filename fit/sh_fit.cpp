@@ -107,4 +107,28 @@ std::vector<double> clamped_sh_cell_probabilities(const std::vector<double>& c,
   return p;
 }
 
+void compress_across_alpha(StfModel& m, const std::vector<double>& escapes) {
+  const int bins = m.bins(), count = sh_count(m.band_limit), n = m.alpha_degree + 1;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(bins, n), Y = Eigen::MatrixXd::Zero(bins, count);
+  for (int b = 0; b < bins; ++b) {
+    double x = std::cos(0.5 * (m.alpha_edges[b] + m.alpha_edges[b + 1]));
+    double w = m.status[b] == BinStatus::kFitted ? std::sqrt(escapes[b]) : 0.0;
+    for (int j = 0; j < n; ++j) A(b, j) = w * std::cos(j * std::acos(x));  // T_j(x)
+    for (int i = 0; i < count; ++i) Y(b, i) = w * m.sh[std::size_t(b) * count + i];
+  }
+  Eigen::MatrixXd C = A.colPivHouseholderQr().solve(Y);  // [n, count]
+  m.sh_chebyshev.clear();
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < count; ++i) m.sh_chebyshev.push_back(C(j, i));
+  for (int b = 0; b < bins; ++b) {
+    double x = std::cos(0.5 * (m.alpha_edges[b] + m.alpha_edges[b + 1]));
+    for (int i = 0; i < count; ++i) {
+      double v = 0;
+      for (int j = 0; j < n; ++j) v += C(j, i) * std::cos(j * std::acos(x));
+      m.sh[std::size_t(b) * count + i] = v;
+    }
+  }
+  m.rebuild_sh_tables();
+}
+
 }  // namespace stf::fit

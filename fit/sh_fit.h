@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "grid.h"
+#include "stf/model.h"
 
 namespace stf::fit {
 
@@ -44,5 +45,10 @@ std::vector<double> clamped_sh_cell_probabilities(const std::vector<double>& coe
 
 // Real SH basis at every quadrature point.
 std::vector<double> sh_basis_at(const CellQuadrature& q, int band_limit);
+
+// Fits every SH coefficient across the fitted bins as a Chebyshev series of degree
+// model.alpha_degree in cos(alpha) at the bin centres, least squares weighted by each bin's
+// escapes, and replaces the bins' coefficients by its values.
+void compress_across_alpha(StfModel& model, const std::vector<double>& escapes);
 
 }  // namespace stf::fit

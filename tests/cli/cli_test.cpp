@@ -183,8 +183,8 @@ TEST_F(Cli, EvalCellsHoldTheCandidateInTheReferenceLayout) {
 }
 
 // A sparse forward-scattering table: hvmf:auto tries neighbour pooling and says what it chose
-// in the report; --no-pooling fits every bin alone and the report has no pooling scores.
-TEST_F(Cli, FitReportsNeighbourPoolingAndNoPoolingTurnsItOff) {
+// in the report; --ablate pooling fits every bin alone and the report has no pooling scores.
+TEST_F(Cli, FitReportsNeighbourPoolingAndAblatingItTurnsItOff) {
   ASSERT_EQ(stf("precompute --sigma-s 4.275 --sigma-a 0.225 --g 0.9 --alpha-bins 18 --grid healpix:4 --quiet "
                 "--paths 20000 -o " + out("t.h5")).status, 0);
   auto report = [&](const std::string& extra, const std::string& name) {
@@ -194,10 +194,23 @@ TEST_F(Cli, FitReportsNeighbourPoolingAndNoPoolingTurnsItOff) {
     std::ifstream json(out(name));
     return std::string((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
   };
-  const std::string pooled = report("", "pooled.json"), alone = report("--no-pooling", "alone.json");
+  const std::string pooled = report("", "pooled.json"), alone = report("--ablate pooling", "alone.json");
   EXPECT_NE(pooled.find("\"neighbour_weight\": 0.5"), std::string::npos) << pooled.substr(0, 600);
   EXPECT_NE(pooled.find("\"pool_heldout_nll\""), std::string::npos);
   EXPECT_EQ(alone.find("\"pool_heldout_nll\""), std::string::npos) << alone.substr(0, 600);
+}
+
+// Without --model, stf fit fits what scenes and render use: auto, both families scored on the
+// held-out half (the report names the family kept and gives both scores).
+TEST_F(Cli, FitWithoutModelFitsAuto) {
+  ASSERT_EQ(stf("precompute --sigma-s 4.275 --sigma-a 0.225 --g 0.5 --alpha-bins 9 --grid healpix:4 --quiet "
+                "--paths 20000 -o " + out("t.h5")).status, 0);
+  Result fit = stf("fit " + out("t.h5") + " --quiet --report " + out("r.json") + " -o " + out("m.h5"));
+  ASSERT_EQ(fit.status, 0) << fit.err;
+  std::ifstream json(out("r.json"));
+  const std::string report((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+  EXPECT_NE(report.find("\"model\": \"auto\""), std::string::npos) << report.substr(0, 300);
+  EXPECT_NE(report.find("\"family_heldout_nll\""), std::string::npos) << report.substr(0, 300);
 }
 
 // --tolerance: a certified model with fewer or equal alpha bins, evaluable against the
@@ -227,7 +240,7 @@ TEST_F(Cli, FitAndEvalRejectBadInput) {
   const BadInput cases[] = {
       {"fit " + out("t.h5") + " --model vmf:0 -o " + out("m.h5"), "--model"},
       {"fit " + out("t.h5") + " --model gauss:3 -o " + out("m.h5"), "--model"},
-      {"fit " + out("t.h5") + " --model hvmf:auto --max-blend 4 -o " + out("m.h5"), "--max-blend"},
+      {"fit " + out("t.h5") + " --model hvmf:auto --ablate turn,blend,spin -o " + out("m.h5"), "--ablate"},
       {"fit " + out("missing.h5") + " -o " + out("m.h5"), "missing.h5"},
       {"fit " + out("t.h5") + " -o /nonexistent-folder/m.h5", "-o"},
       {"eval " + out("t.h5") + " --reference " + out("other.h5"), "--reference"},

@@ -454,7 +454,7 @@ TEST_F(Fault, SmallMisusesGetOneLine) {
       {"--config " + out("broken.toml") + " precompute -o " + out("x.h5"),
        "broken.toml', line 1: not valid TOML"},
       {"plot " + out("t.h5") + " --alpha '' -o " + out("x.png"), "--alpha"},
-      {"fit " + out("t.h5") + " --max-blend '' -o " + out("x.h5"), "--max-blend"},
+      {"fit " + out("t.h5") + " --ablate '' -o " + out("x.h5"), "--ablate"},
       {"precompute --sigma-s 1 --sigma-a 0 --g 0 --shard 0/100000 --paths 1e4 -o " + out("x.h5"),
        "holds no paths"},
       {"fitt " + out("t.h5") + " -o " + out("x.h5"), "unknown command 'fitt'"},

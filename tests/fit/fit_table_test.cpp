@@ -1,5 +1,6 @@
 // Whole tables: stiff media, determinism, storage, evaluation.
 #include "fit_table.h"
+#include "sh_fit.h"
 
 #include <H5Cpp.h>
 #include <gtest/gtest.h>
@@ -179,89 +180,8 @@ TEST(Mirror, FoldingAveragesMirrorPairsAndKeepsTotals) {
   }
 }
 
-// Against an independent table: a forward-scattering medium's model of 1e5 paths comes closer
-// when the table is folded over its mirror symmetry, and closer again when the bins are
-// fitted with their neighbours' escapes (which the held-out half chooses here).
-TEST(FitTable, FoldingAndPoolingBringSparseForwardPeaksCloser) {
-  const Medium m{4.275, 0.225, 0.9, 1};  // tau 4.5, albedo 0.95
-  const Table small = make_table(m, 100000, "healpix:16", 45, 2), reference = make_table(m, 3000000, "healpix:16", 45, 1000);
-  FitSettings plain = parse_model_spec("hvmf:auto");
-  plain.fold_mirror = plain.pool_neighbours = false;
-  plain.max_blend = 0;  // folding and pooling alone: a blend the held-out half keeps would mix in
-  FitSettings folded = plain, pooled = plain;
-  folded.fold_mirror = pooled.fold_mirror = pooled.pool_neighbours = true;
-  FitReport r;
-  const double tv_plain = evaluate(fit_table(small, plain), reference).joint_tv;
-  const double tv_folded = evaluate(fit_table(small, folded), reference).joint_tv;
-  const double tv_pooled = evaluate(fit_table(small, pooled, &r), reference).joint_tv;
-  EXPECT_EQ(r.neighbour_weight, kNeighbourWeight);
-  EXPECT_LT(tv_folded, tv_plain);
-  EXPECT_LT(tv_pooled, tv_folded);
-}
-
-// A thin forward-scattering medium at 1e5 paths leaves a few thousand escapes after two or more
-// collisions in its heaviest alpha bins and tens in the far ones. Against an independent table,
-// pooling bin by bin (sloped pools where the forward peak changes shape, wide flat ones in the
-// sparse far bins) brings the model much closer than fitting every bin alone; both kinds are
-// chosen. The held-out half, scoring each blended neighbour as the sampler turns it into the bin,
-// keeps a blend here (tau 1 g 0.9, five seeds: blend 1 ahead by 25-36 nats, 4-7 standard
-// errors; scored at the neighbours' own bins it was -23 to +7 nats, and the blended models are
-// closer to a 3e7-path reference on all five). Each bin then takes a blend width of its own,
-// narrow near the axis, where the forward peak changes its shape from bin to bin, and wide far
-// from it; the widths by bin beat the one width on the held-out half by more than two standard
-// errors and bring the model closer than the one width would (five seeds against a 3e7-path
-// reference: mean 0.0110 against 0.0114, closer on four, level on one).
-TEST(FitTable, PoolsChosenBinByBinBringThinForwardTablesCloser) {
-  const Medium m{0.95, 0.05, 0.9, 1};  // tau 1, albedo 0.95
-  const Table small = make_table(m, 100000, "healpix:16", 45, 2), reference = make_table(m, 3000000, "healpix:16", 45, 1000);
-  FitSettings alone = parse_model_spec("hvmf:auto");
-  alone.pool_neighbours = false;
-  FitSettings pooled = parse_model_spec("hvmf:auto");
-  FitReport r;
-  StfModel model = fit_table(small, pooled, &r);
-  const double tv_alone = evaluate(fit_table(small, alone), reference).joint_tv;
-  const double tv_pooled = evaluate(model, reference).joint_tv;
-  EXPECT_LT(tv_pooled, 0.8 * tv_alone) << tv_pooled << " against " << tv_alone;
-  int sloped = 0, wide = 0;
-  for (const PoolTry& p : r.pools) sloped += p.sloped, wide += !p.sloped && p.width > 1;
-  EXPECT_GT(sloped, 0);
-  EXPECT_GT(wide, 0);
-  EXPECT_GT(model.alpha_blend, 0);
-  ASSERT_GE(r.blend_heldout_nll.size(), 2u);
-  EXPECT_GT(r.blend_heldout_nll[0] - r.blend_heldout_nll[1], 2 * r.blend_heldout_nll_error[1]);
-  ASSERT_EQ(model.alpha_blend_width.size(), 45u);
-  EXPECT_GT(r.blend_by_bin_gain, 2 * r.blend_by_bin_error);
-  EXPECT_LT(model.blend_width(0), model.blend_width(20));
-  StfModel one_width = model;  // the single width the held-out half chose, for every bin
-  one_width.alpha_blend_width.clear();
-  one_width.alpha_blend = r.blend_width;
-  EXPECT_GT(r.blend_width, 0);
-  const double tv_one_width = evaluate(one_width, reference).joint_tv;
-  EXPECT_LT(tv_pooled, tv_one_width) << tv_pooled << " against " << tv_one_width;
-}
-
-// The forward peak of a thin forward-scattering medium turns with the exit point, by about 1.5
-// degrees per degree of alpha near the axis (the headings of a 3e7-path table: 1.66 in the first
-// 2 degrees). A model whose bins turn at the smoothed headings' rate (StfModel::alpha_turn), its
-// lobes fitted to each bin's counts as the turned density averages over the bin, is much closer
-// to an independent table at twice the alpha resolution than one whose bins stand still, and no
-// farther at its own.
-TEST(FitTable, DensitiesThatTurnWithTheExitPointHoldAtFinerAlpha) {
-  const Medium m{0.95, 0.05, 0.9, 1};  // tau 1, albedo 0.95
-  const Table small = make_table(m, 100000, "healpix:16", 45, 2);
-  const Table fine = make_table(m, 10000000, "healpix:16", 90, 1000), reference = coarsen_table(fine, 2, 0);
-  FitSettings still = parse_model_spec("hvmf:auto");
-  still.turn = false;
-  const StfModel turning = fit_table(small, parse_model_spec("hvmf:auto")), standing = fit_table(small, still);
-  ASSERT_EQ(turning.alpha_turn.size(), 45u);
-  EXPECT_TRUE(standing.alpha_turn.empty());
-  for (int b = 0; b < 5; ++b) EXPECT_GT(turning.alpha_turn[b], 1.2) << b;
-  for (int b = 0; b < 5; ++b) EXPECT_LT(turning.alpha_turn[b], 1.8) << b;
-  const double fine_turning = evaluate(turning, fine).joint_tv, fine_standing = evaluate(standing, fine).joint_tv;
-  EXPECT_LT(fine_turning, 0.8 * fine_standing) << fine_turning << " against " << fine_standing;
-  const double own_turning = evaluate(turning, reference).joint_tv, own_standing = evaluate(standing, reference).joint_tv;
-  EXPECT_LT(own_turning, 1.05 * own_standing) << own_turning << " against " << own_standing;
-}
+// What folding, pooling, blends by bin and turning bins buy, judged against independent
+// references, are single-seed measurements: bench/fit_regression.py.
 
 // Sloped pools turn by headings smoothed across alpha (smooth_headings): a local quadratic
 // reproduces a quadratic exactly, unwraps headings that cross +-pi, keeps a bin's own where its

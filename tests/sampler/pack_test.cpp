@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "fit_table.h"
+#include "sh_fit.h"
 #include "precompute.h"
 #include "rng.h"
 #include "stf/sampler.h"

@@ -1,0 +1,102 @@
+// What each bin takes from its neighbours: pools and blends (fit_stages.h).
+#include "fit_stages.h"
+
+namespace stf::fit::stages {
+
+Neighbours choose_neighbours(const Escapes& e, const FitSettings& s, const DirectionGrid& grid,
+                             const QuadratureLevels& levels, SizeChoice& c, FitReport& r) {
+  Neighbours n;
+  const Table& t = e.table;
+  if (!s.automatic) return n;
+  if (s.kind == ModelKind::kVmf && s.pool_neighbours && t.alpha_bins > 1) {
+    n.pool.bin = choose_pooling(e, s, grid, levels, c, r);
+    if (cancelled(s)) return n;
+    if (s.hemispherical && s.wide_pools) wide_pooling(e, s, grid, levels, c, n.pool.bin);
+    if (cancelled(s)) return n;
+  }
+  if (t.alpha_bins > 1) {
+    TurnedNeighbours turned;
+    if (!e.turns.empty() && s.max_blend > 0) turned = turned_neighbours(c.fits, e.turns, levels, s.max_blend, s);
+    if (cancelled(s)) return n;
+    BlendChoice blend = choose_blend(e, c.score, s, turned);
+    r.blend_heldout_nll = blend.nll;
+    r.blend_heldout_nll_error = blend.error;
+    r.blend_width = blend.width;
+    r.blend_by_bin_gain = blend.by_bin_gain;
+    r.blend_by_bin_error = blend.by_bin_error;
+    n.blend_widths = blend.widths;
+  }
+  return n;
+}
+
+std::vector<PoolTry> choose_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid,
+                                    const QuadratureLevels& levels, SizeChoice& c, FitReport& r) {
+  const std::vector<int>& sizes = c.sizes;
+  const std::size_t best = c.best;
+  int& size = c.size;
+  BinFits& fits = c.fits;
+  HeldOut& score = c.score;
+  const std::vector<int> all = auto_candidates(s.kind);
+  std::vector<PoolTry> alone(std::size_t(e.table.alpha_bins)), nearest = alone;
+  for (int b = 0; b < e.table.alpha_bins; ++b) nearest[std::size_t(b)].width = worth_pooling(e, b) ? 1 : 0;
+  if (nearest == alone || best + 1 >= all.size()) return alone;
+  const auto next = std::upper_bound(all.begin(), all.end(), size);
+  std::vector<PoolTry> chosen = alone;
+  r.pool_heldout_nll.push_back(score.nll);
+  for (int candidate : next == all.end() ? std::vector<int>{size} : std::vector<int>{size, *next}) {
+    const auto tried = std::find(sizes.begin(), sizes.end(), candidate);
+    const Pooling pool{nearest, tried == sizes.end() ? nullptr : &c.half_fits[std::size_t(tried - sizes.begin())]};
+    ShSmoothing unused;
+    BinFits pooled;
+    HeldOut h = heldout_for_size(e, s, candidate, grid, levels, unused, pooled, &fits, &pool);
+    if (cancelled(s)) return alone;
+    r.pool_sizes.push_back(candidate);
+    r.pool_heldout_nll.push_back(h.nll);
+    if (h.nll < score.nll) {
+      size = candidate, chosen = nearest;
+      fits = std::move(pooled), score = std::move(h);
+    }
+  }
+  r.neighbour_weight = chosen == alone ? 0 : kNeighbourWeight;
+  return chosen;
+}
+
+std::vector<double> pooled_gain(const Pooling& pool, const HeldOut& before, const HeldOut& pooled) {
+  const int bins = int(pool.bin.size());
+  std::vector<double> gain(std::size_t(bins), 0.0);
+  for (int b = 0; b < bins; ++b)
+    for (int j = std::max(0, b - 1); j <= std::min(bins - 1, b + 1); ++j)
+      if (pool.bin[std::size_t(j)].width > 0)
+        gain[std::size_t(b)] += (j == b ? 1.0 : kNeighbourGainWeight) *
+                                (before.bin_nll[std::size_t(j)] - pooled.bin_nll[std::size_t(j)]);
+  return gain;
+}
+
+void wide_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid, const QuadratureLevels& levels,
+                  SizeChoice& c, std::vector<PoolTry>& pools) {
+  const int bins = e.table.alpha_bins, size = c.size;
+  BinFits& fits = c.fits;
+  HeldOut& score = c.score;
+  for (const PoolTry& tried : kPoolTries) {
+    Pooling pool{std::vector<PoolTry>(std::size_t(bins)), &fits, true};
+    for (int b = 0; b < bins; ++b)
+      if ((tried.sloped ? noisy(e, b, size) : capped_by_escapes(e, b, size)) && pools[std::size_t(b)] != tried)
+        pool.bin[std::size_t(b)] = tried;
+    if (!pool.any()) continue;
+    ShSmoothing unused;
+    BinFits pooled;
+    HeldOut h = heldout_for_size(e, s, size, grid, levels, unused, pooled, &fits, &pool);
+    if (cancelled(s)) return;
+    const std::vector<double> gain = pooled_gain(pool, score, h);
+    for (int b = 0; b < bins; ++b) {
+      if (pool.bin[std::size_t(b)].width == 0 || !(gain[std::size_t(b)] > 0)) continue;
+      pools[std::size_t(b)] = tried;
+      fits.lobes[std::size_t(b)] = std::move(pooled.lobes[std::size_t(b)]);
+      score.nll += h.bin_nll[std::size_t(b)] - score.bin_nll[std::size_t(b)];
+      score.bin_nll[std::size_t(b)] = h.bin_nll[std::size_t(b)];
+      score.log_p[std::size_t(b)] = std::move(h.log_p[std::size_t(b)]);
+    }
+  }
+}
+
+}  // namespace stf::fit::stages

@@ -1,0 +1,50 @@
+// The bins' headings smoothed across alpha, and the turns taken from their slopes (fit_table.h).
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+
+#include "fit_table.h"
+#include "stf/vec3.h"
+
+namespace stf::fit {
+
+std::vector<double> smooth_headings(std::vector<double> headings, const std::vector<double>& escapes,
+                                    std::vector<double>* slopes) {
+  std::vector<double>& h = headings;
+  // Each against the last bin with escapes: an empty bin's heading (atan2(0, 0) = 0) is none.
+  for (std::size_t b = 0, last = 0, seen = 0; b < h.size(); ++b) {
+    if (seen) h[b] -= 2 * kPi * std::round((h[b] - h[last]) / (2 * kPi));
+    if (escapes[b] > 0) last = b, seen = 1;
+  }
+  const int bins = int(h.size());
+  std::vector<double> smooth = h;
+  if (slopes) slopes->assign(h.size(), 0.0);
+  for (int b = 0; b < bins; ++b) {
+    Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d right = Eigen::Vector3d::Zero();
+    for (int j = std::max(0, b - kHeadingWindow); j <= std::min(bins - 1, b + kHeadingWindow); ++j) {
+      const double d = j - b, w = escapes[std::size_t(j)] * (1 - std::abs(d) / (kHeadingWindow + 1));
+      const Eigen::Vector3d x(1, d, d * d);
+      normal += w * x * x.transpose(), right += w * x * h[std::size_t(j)];
+    }
+    const Eigen::FullPivLU<Eigen::Matrix3d> lu(normal);
+    if (lu.rank() < 3) continue;
+    const Eigen::Vector3d fit = lu.solve(right);
+    smooth[std::size_t(b)] = fit(0);
+    if (slopes) (*slopes)[std::size_t(b)] = fit(1);
+  }
+  return smooth;
+}
+
+std::vector<double> alpha_turns(const std::vector<double>& headings, const std::vector<double>& escapes,
+                                const std::vector<double>& alpha_edges) {
+  std::vector<double> slopes;
+  smooth_headings(headings, escapes, &slopes);
+  std::vector<double> turn(headings.size());
+  for (std::size_t b = 0; b < turn.size(); ++b)
+    turn[b] = std::clamp(slopes[b] / (alpha_edges[b + 1] - alpha_edges[b]), -kMaxFittedTurn, kMaxFittedTurn);
+  return turn;
+}
+
+}  // namespace stf::fit
