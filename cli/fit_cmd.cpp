@@ -10,6 +10,7 @@
 
 #include "cli.h"
 #include "evaluate.h"
+#include "expected_singular.h"
 #include "fit_table.h"
 #include "h5io.h"
 #include "model_io.h"
@@ -37,7 +38,7 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
   std::ostringstream s;
   s << "{\n  \"model\": \"" << spec << "\", \"chosen_size\": " << r.chosen_size << ", \"smoothing\": " << r.smoothing
     << ", \"window\": \"" << (r.lanczos_window ? "lanczos" : "none") << "\""
-    << ", \"alpha_penalty\": " << r.alpha_penalty
+    << ", \"alpha_penalty\": " << r.alpha_penalty << ", \"singular_parts\": \"" << r.singular_parts << "\", \"heldout_halves\": \"" << r.heldout_halves << "\""
     << ", \"family\": \"" << (m.kind == ModelKind::kSh ? "sh" : m.hemispherical ? "hvmf" : "vmf") << "\"";
   if (r.family_heldout_nll.size() == 2)
     s << ", \"family_heldout_nll\": {\"vmf\": " << r.family_heldout_nll[0] << ", \"sh\": " << r.family_heldout_nll[1] << "}";
@@ -141,6 +142,11 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
   if (!o.pack.empty()) pack_out.emplace(o.pack, "--pack", files);
 
   Table table = read_table(o.table);
+  if (std::string why = fit::settings_error(table, settings); !why.empty()) fail(o.table + ": " + why);
+  if (cmd.count("--tolerance") && table.halves == Halves::kEven)
+    fail(o.table + ": --tolerance chooses on held-out halves, which a table of weights without /escape/weight_half lacks");
+  if (pack_out && !table.has_medium)
+    fail(o.table + " names no medium, and a pack needs one (tau, albedo, g): import the histogram with --sigma-s, --sigma-a and --g");
   settings.cancel = &interrupted;
   fit::FitReport report;
   StfModel model;
@@ -210,8 +216,9 @@ void run_eval(const EvalOptions& o) {
     if (json_out) keep.push_back(json_out->named());
     cells_out.emplace(o.cells, "--cells", keep);
   }
+  // A file without a format attribute may be a table stf did not make: read_table says if not.
   std::string format = fit::file_format(o.candidate);
-  if (format != "stf-model" && format != "stf-table")
+  if (format != "stf-model" && format != "stf-table" && !format.empty())
     fail("'" + o.candidate + "' is neither an stf model nor an stf table");
   Table reference = read_table(o.reference);
   fit::Evaluation ev;

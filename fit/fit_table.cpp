@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "alpha_marginal.h"
+#include "expected_singular.h"
 #include "fit_stages.h"
 #include "alpha_tilt.h"
 #include "cell_probability.h"
@@ -151,6 +152,8 @@ StfModel fit_any_family(const Table& t, const FitSettings& s, FitReport& r) {
 }  // namespace
 
 StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
+  if (std::string why = settings_error(t, s); !why.empty()) throw std::invalid_argument(why);
+  if (wants_expected_singular_parts(t)) return fit_table(with_expected_singular_parts(t), s, report);
   if (s.any_family) {
     FitReport local;
     return fit_any_family(t, s, report ? *report : local);
@@ -185,7 +188,9 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   BinFits chosen_fits;  // on half 0: where the final fit's lobes start
   std::vector<int> blend_widths;  // per bin; empty: none
   Pooling pool;  // how far each bin reaches for its neighbours' escapes (fit_bins)
-  if (s.automatic || s.kind == ModelKind::kSh) {
+  // SH chooses its smoothing on the held-out half; evenly split weights have none, and keep the
+  // plain projection.
+  if (s.automatic || (s.kind == ModelKind::kSh && t.halves != Halves::kEven)) {
     std::vector<int> sizes = s.automatic ? auto_candidates(s.kind) : std::vector<int>{s.size};
     std::vector<HeldOut> scores;
     std::vector<ShSmoothing> ts;
@@ -325,6 +330,8 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
     d.chi2_dof = chi2 / std::max(1, used - params_per_bin);
   });
   r.chosen_size = size;
+  r.singular_parts = singular_parts_source(t);
+  r.heldout_halves = t.halves == Halves::kTallied ? "tallied" : t.halves == Halves::kThinned ? "thinned" : "none";
   r.pools = pool.bin;
   r.smoothing = smoothing.t;
   r.alpha_penalty = marginal.bin_escapes.empty() ? -1 : marginal.penalty;
