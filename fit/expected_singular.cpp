@@ -9,15 +9,20 @@
 namespace stf::fit {
 
 bool wants_expected_singular_parts(const Table& t) {
-  return t.halves != Halves::kTallied && t.has_medium && !stages::singular_parts_exact(t);
+  return t.halves != Halves::kTallied && !t.singular_expected && !stages::singular_parts_exact(t);
 }
 
 Table with_expected_singular_parts(const Table& t) {
   Table e = t;
+  e.singular_expected = true;
   const std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
+  const std::size_t pole = std::size_t(grid->cell({0, 0, 1}));
+  if (!t.has_medium) {
+    for (int h = 0; h < 2; ++h) e.uncollided_half[h] = t.weight_half[h][pole];
+    return e;
+  }
   const stages::SingularParts p = stages::medium_singular_parts(t);
   const double paths = double(t.paths);
-  const std::size_t pole = std::size_t(grid->cell({0, 0, 1}));
   for (int h = 0; h < 2; ++h) e.uncollided_half[h] = std::min(t.weight_half[h][pole], 0.5 * paths * p.uncollided);
   e.once.clear();
   if (p.once > 0) {
@@ -31,12 +36,11 @@ Table with_expected_singular_parts(const Table& t) {
       }
   }
   e.once_tallied = true;
-  e.singular_expected = true;
   return e;
 }
 
 std::string singular_parts_source(const Table& t) {
-  if (t.singular_expected) return "expected from the medium";
+  if (t.singular_expected) return t.has_medium ? "expected from the medium" : "none but bin 0's cell of +z as the uncollided part";
   return stages::singular_parts_exact(t) ? "tallied" : "none";
 }
 

@@ -165,7 +165,7 @@ std::string model_error(const StfModel& m) {
   if (bins < 1) return "no alpha bins";
   if (!m.has_medium()) {
     if (!(std::isnan(m.albedo) && std::isnan(m.g))) return "medium incomplete (tau, albedo and g, or none of them)";
-    if (m.once_fraction != 0 || m.uncollided_fraction != 0) return "a model without a medium has no singular parts";
+    if (m.once_fraction != 0) return "a model without a medium has no once-scattered part";
   } else if (!(finite_in(m.tau, 0, 1e300) && m.tau > 0 && finite_in(m.albedo, 0, 1) && m.g > -1 && m.g < 1)) {
     return "medium out of range (tau > 0, albedo in [0, 1], g in (-1, 1))";
   }

@@ -28,7 +28,7 @@ enum class BinStatus : std::int32_t {
 struct StfModel {
   ModelKind kind = ModelKind::kVmf;
   // The medium (of the source table) and its dimensionless numbers; all NaN in a model of a
-  // table that named no medium (such a model has no singular parts and cannot be packed).
+  // table that named no medium (such a model has no once-scattered part and cannot be packed).
   double sigma_s = 0, sigma_a = 0, g = 0, radius = 1, tau = 0, albedo = 0;
   bool has_medium() const { return !(tau != tau); }
   double escape_probability = 0, absorbed_fraction = 0, truncated_fraction = 0;
