@@ -13,6 +13,7 @@
 #include "expected_singular.h"
 #include "fit_table.h"
 #include "h5io.h"
+#include "minimal_table.h"
 #include "model_io.h"
 #include "stf/pack.h"
 #include "tolerance.h"
@@ -181,26 +182,15 @@ struct EvalOptions {
 void write_cells(AtomicOutput& out, const EvalOptions& o, const Table& reference, const std::vector<double>& joint) {
   std::string bytes;
   try {
-    H5::Exception::dontPrint();
-    h5::MemoryFile memory;
-    H5::H5File& file = memory.file();
-    h5::put_attr(file, "format", std::string("stf-cells"));
-    h5::put_attr(file, "format_version", 1);
-    h5::put_attr(file, "candidate", o.candidate);
-    h5::put_attr(file, "reference", o.reference);
-    h5::put_attr(file, "grid", reference.grid);
-    H5::Group escape = file.createGroup("/escape");
-    const hsize_t bins = hsize_t(reference.alpha_bins), cells = hsize_t(reference.cells);
-    h5::put_dataset(escape, "probability", {bins, cells}, joint.data());
-    h5::put_dataset(escape, "alpha_edges", {bins + 1}, reference.alpha_edges.data());
-    H5::Group grid = file.createGroup("/grid");
-    h5::put_dataset(grid, "direction", {cells, 3}, reference.direction.front().data());
-    h5::put_dataset(grid, "solid_angle", {cells}, reference.solid_angle.data());
-    escape.close();
-    grid.close();
-    bytes = memory.bytes();
-  } catch (const H5::Exception& e) {
-    fail("--cells: cannot write '" + o.cells + "': " + e.getDetailMsg());
+    bytes = minimal_table_file(reference, joint, [&](H5::H5File& file) {
+      h5::put_attr(file, "format", std::string("stf-cells"));
+      h5::put_attr(file, "format_version", 1);
+      h5::put_attr(file, "candidate", o.candidate);
+      h5::put_attr(file, "reference", o.reference);
+      h5::put_attr(file, "grid", reference.grid);
+    }, "probability");
+  } catch (const std::runtime_error& e) {
+    fail("--cells: cannot write '" + o.cells + "': " + e.what());
   }
   out.stage(bytes);
 }

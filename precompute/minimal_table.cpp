@@ -86,7 +86,7 @@ void put_medium(H5::H5File& file, const Medium& m) {
 }
 
 std::string minimal_table_file(const Table& layout, const std::vector<double>& weight,
-                               const std::function<void(H5::H5File&)>& attributes) {
+                               const std::function<void(H5::H5File&)>& attributes, const char* name) {
   try {
     H5::Exception::dontPrint();
     h5::MemoryFile memory;
@@ -94,7 +94,7 @@ std::string minimal_table_file(const Table& layout, const std::vector<double>& w
     attributes(file);
     const hsize_t bins = hsize_t(layout.alpha_bins), cells = hsize_t(layout.cells);
     H5::Group escape = file.createGroup("/escape");
-    h5::put_dataset(escape, "weight", {bins, cells}, weight.data());
+    h5::put_dataset(escape, name, {bins, cells}, weight.data());
     h5::put_dataset(escape, "alpha_edges", {bins + 1}, layout.alpha_edges.data());
     H5::Group grid = file.createGroup("/grid");
     h5::put_dataset(grid, "direction", {cells, 3}, layout.direction.front().data());

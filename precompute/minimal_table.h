@@ -42,10 +42,10 @@ std::string grid_of_cells(std::int64_t cells);
 std::string grid_mismatch(const std::string& spec, const std::vector<std::array<double, 3>>& direction);
 
 // The bytes of an HDF5 table holding the four datasets of `layout` (its alpha edges, cell
-// centres and solid angles) with `weight` [alpha_bins * cells] as /escape/weight, and the root
-// attributes `attributes` writes.
+// centres and solid angles) with `weight` [alpha_bins * cells] as /escape/weight (or /escape/
+// `name`), and the root attributes `attributes` writes.
 std::string minimal_table_file(const Table& layout, const std::vector<double>& weight,
-                               const std::function<void(H5::H5File&)>& attributes);
+                               const std::function<void(H5::H5File&)>& attributes, const char* name = "weight");
 
 // The medium's root attributes as stf's tables carry them.
 void put_medium(H5::H5File& file, const Medium& medium);
