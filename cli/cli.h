@@ -185,5 +185,7 @@ void add_report_command(CLI::App& app);
 void add_fit_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
 void add_render_command(CLI::App& app);
+void add_import_command(CLI::App& app);
+void add_smooth_command(CLI::App& app);
 
 }  // namespace stf::cli

@@ -10,8 +10,10 @@
 
 #include "cli.h"
 #include "evaluate.h"
+#include "expected_singular.h"
 #include "fit_table.h"
 #include "h5io.h"
+#include "minimal_table.h"
 #include "model_io.h"
 #include "stf/pack.h"
 #include "tolerance.h"
@@ -34,7 +36,7 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
   std::ostringstream s;
   s << "{\n  \"model\": \"" << spec << "\", \"chosen_size\": " << r.chosen_size << ", \"smoothing\": " << r.smoothing
     << ", \"window\": \"" << (r.lanczos_window ? "lanczos" : "none") << "\""
-    << ", \"alpha_penalty\": " << r.alpha_penalty
+    << ", \"alpha_penalty\": " << r.alpha_penalty << ", \"singular_parts\": \"" << r.singular_parts << "\", \"heldout_halves\": \"" << r.heldout_halves << "\""
     << ", \"family\": \"" << (m.kind == ModelKind::kSh ? "sh" : m.hemispherical ? "hvmf" : "vmf") << "\"";
   if (r.family_heldout_nll.size() == 2)
     s << ", \"family_heldout_nll\": {\"vmf\": " << r.family_heldout_nll[0] << ", \"sh\": " << r.family_heldout_nll[1] << "}";
@@ -143,6 +145,11 @@ void run_fit(FitOptions o, const CLI::App& cmd) {
   if (!o.pack.empty()) pack_out.emplace(o.pack, "--pack", files);
 
   Table table = read_table(o.table);
+  if (std::string why = fit::settings_error(table, settings); !why.empty()) fail(o.table + ": " + why);
+  if (cmd.count("--tolerance") && table.halves == Halves::kEven)
+    fail(o.table + ": --tolerance chooses on held-out halves, which a table of weights without /escape/weight_half lacks");
+  if (pack_out && !table.has_medium)
+    fail(o.table + " names no medium, and a pack needs one (tau, albedo, g): import the histogram with --sigma-s, --sigma-a and --g");
   settings.cancel = &interrupted;
   fit::FitReport report;
   StfModel model;
@@ -177,26 +184,15 @@ struct EvalOptions {
 void write_cells(AtomicOutput& out, const EvalOptions& o, const Table& reference, const std::vector<double>& joint) {
   std::string bytes;
   try {
-    H5::Exception::dontPrint();
-    h5::MemoryFile memory;
-    H5::H5File& file = memory.file();
-    h5::put_attr(file, "format", std::string("stf-cells"));
-    h5::put_attr(file, "format_version", 1);
-    h5::put_attr(file, "candidate", o.candidate);
-    h5::put_attr(file, "reference", o.reference);
-    h5::put_attr(file, "grid", reference.grid);
-    H5::Group escape = file.createGroup("/escape");
-    const hsize_t bins = hsize_t(reference.alpha_bins), cells = hsize_t(reference.cells);
-    h5::put_dataset(escape, "probability", {bins, cells}, joint.data());
-    h5::put_dataset(escape, "alpha_edges", {bins + 1}, reference.alpha_edges.data());
-    H5::Group grid = file.createGroup("/grid");
-    h5::put_dataset(grid, "direction", {cells, 3}, reference.direction.front().data());
-    h5::put_dataset(grid, "solid_angle", {cells}, reference.solid_angle.data());
-    escape.close();
-    grid.close();
-    bytes = memory.bytes();
-  } catch (const H5::Exception& e) {
-    fail("--cells: cannot write '" + o.cells + "': " + e.getDetailMsg());
+    bytes = minimal_table_file(reference, joint, [&](H5::H5File& file) {
+      h5::put_attr(file, "format", std::string("stf-cells"));
+      h5::put_attr(file, "format_version", 1);
+      h5::put_attr(file, "candidate", o.candidate);
+      h5::put_attr(file, "reference", o.reference);
+      h5::put_attr(file, "grid", reference.grid);
+    }, "probability");
+  } catch (const std::runtime_error& e) {
+    fail("--cells: cannot write '" + o.cells + "': " + e.what());
   }
   out.stage(bytes);
 }
@@ -212,8 +208,9 @@ void run_eval(const EvalOptions& o) {
     if (json_out) keep.push_back(json_out->named());
     cells_out.emplace(o.cells, "--cells", keep);
   }
+  // A file without a format attribute may be a table stf did not make: read_table says if not.
   std::string format = fit::file_format(o.candidate);
-  if (format != "stf-model" && format != "stf-table")
+  if (format != "stf-model" && format != "stf-table" && !format.empty())
     fail("'" + o.candidate + "' is neither an stf model nor an stf table");
   Table reference = read_table(o.reference);
   fit::Evaluation ev;

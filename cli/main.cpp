@@ -75,6 +75,8 @@ int run(int argc, char** argv) {
   stf::cli::add_merge_command(app);
   stf::cli::add_fit_command(app);
   stf::cli::add_eval_command(app);
+  stf::cli::add_import_command(app);
+  stf::cli::add_smooth_command(app);
   stf::cli::add_pack_command(app);
   stf::cli::add_sample_command(app);
   stf::cli::add_build_command(app);

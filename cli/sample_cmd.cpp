@@ -39,6 +39,9 @@ void run_pack(const PackOptions& o) {
   for (std::size_t i = 0; i < o.models.size(); ++i) {
     if (fit::file_format(o.models[i]) != "stf-model") fail("'" + o.models[i] + "' is not an stf model");
     entries.push_back({o.names.empty() ? "" : o.names[i], fit::read_model(o.models[i])});
+    if (!entries.back().model.has_medium())
+      fail("'" + o.models[i] + "' carries no medium (its table named none), and a pack needs one (tau, albedo, g): "
+           "import the histogram with --sigma-s, --sigma-a and --g and fit it again");
     for (std::size_t j = 0; j < i; ++j) {
       const StfModel &a = entries[j].model, &b = entries[i].model;
       if (entries[j].name == entries[i].name && a.tau == b.tau && a.albedo == b.albedo && a.g == b.g)

@@ -213,6 +213,13 @@ Evaluation evaluate(const Table& candidate, const Table& reference, std::vector<
   return ev;
 }
 
+std::vector<double> expected_weights(const StfModel& model, const Table& table) {
+  std::vector<double> joint;
+  evaluate(model, table, {}, &joint);
+  for (double& w : joint) w *= table.escaped_weight;
+  return joint;
+}
+
 namespace {
 // JSON has no infinity: an infinite KL (the candidate misses cells the reference has) is null.
 std::string number(double v) {

@@ -99,6 +99,11 @@ Evaluation evaluate(const StfModel& model, const Table& reference, const std::ve
                     std::vector<double>* joint = nullptr);
 Evaluation evaluate(const Table& candidate, const Table& reference, std::vector<double>* joint = nullptr);
 
+// A model's expected weights in a table's layout [bins * cells]: the table's escaped weight
+// times each (alpha bin, cell)'s probability under the model, every part binned as `evaluate`
+// bins it (`stf smooth`).
+std::vector<double> expected_weights(const StfModel& model, const Table& table);
+
 std::string to_json(const Evaluation& e);
 
 }  // namespace stf::fit

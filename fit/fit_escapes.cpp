@@ -41,10 +41,14 @@ double uncollided_escapes(const Table& t) {
 
 bool singular_parts_exact(const Table& t) { return t.once_tallied && t.uncollided_half[0] >= 0; }
 
-SingularParts singular_parts(const Table& t) {
-  if (!singular_parts_exact(t)) return {uncollided_escapes(t) / double(t.paths), 0.0};
+SingularParts medium_singular_parts(const Table& t) {
   const double tau = t.medium.tau();
   return {std::exp(-tau), t.max_scatter == 0 ? 0.0 : t.medium.albedo() * once_scattered_probability(tau, t.medium.g)};
+}
+
+SingularParts singular_parts(const Table& t) {
+  if (!singular_parts_exact(t)) return {uncollided_escapes(t) / double(t.paths), 0.0};
+  return medium_singular_parts(t);
 }
 
 double absorption_by_regression(const Table& t, const SingularParts& exact) {

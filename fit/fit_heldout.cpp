@@ -75,7 +75,9 @@ SizeChoice choose_size(const Escapes& e, const FitSettings& s, const DirectionGr
                        FitReport& r) {
   SizeChoice c;
   c.size = s.size;
-  if (!s.automatic && s.kind != ModelKind::kSh) return c;
+  // SH chooses its smoothing on the held-out half; evenly split weights have none, and keep the
+  // plain projection.
+  if (!s.automatic && (s.kind != ModelKind::kSh || e.table.halves == Halves::kEven)) return c;
   std::vector<int> sizes = s.automatic ? auto_candidates(s.kind) : std::vector<int>{s.size};
   std::vector<HeldOut> scores;
   std::vector<ShSmoothing> ts;

@@ -90,6 +90,9 @@ struct SingularParts {
 
 bool singular_parts_exact(const Table& t);
 
+// The parts' probabilities from the medium alone: e^{-tau} and the one-collision quadrature.
+SingularParts medium_singular_parts(const Table& t);
+
 SingularParts singular_parts(const Table& t);
 
 // Probabilities per path of the walk's other outcomes: the escapes after two or more collisions

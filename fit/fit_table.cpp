@@ -4,6 +4,7 @@
 
 #include <chrono>
 
+#include "expected_singular.h"
 #include "fit_stages.h"
 
 namespace stf::fit {
@@ -40,6 +41,8 @@ StfModel fit_any_family(const Table& t, const FitSettings& s, FitReport& r) {
 }  // namespace
 
 StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
+  if (std::string why = settings_error(t, s); !why.empty()) throw std::invalid_argument(why);
+  if (wants_expected_singular_parts(t)) return fit_table(with_expected_singular_parts(t), s, report);
   if (s.any_family) {
     FitReport local;
     return fit_any_family(t, s, report ? *report : local);
@@ -74,6 +77,8 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   // Report: diagnostics against the full table, with the model as a sampler will use it.
   diagnose(fits, s, m, levels, choice.size, r);
   r.chosen_size = choice.size;
+  r.singular_parts = singular_parts_source(t);
+  r.heldout_halves = t.halves == Halves::kTallied ? "tallied" : t.halves == Halves::kThinned ? "thinned" : "none";
   r.pools = near.pool.bin;
   r.smoothing = choice.smoothing.t;
   r.alpha_penalty = alpha.marginal.bin_escapes.empty() ? -1 : alpha.marginal.penalty;

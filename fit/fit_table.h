@@ -148,6 +148,11 @@ struct FitReport {
   // The roughness penalty of the smoothed alpha marginal (smooth_alpha_marginal); -1: the
   // bins' tallied totals were kept.
   double alpha_penalty = -1;
+  // How the singular parts were taken out before the smooth fit (singular_parts_source).
+  std::string singular_parts;
+  // Where the held-out halves came from: "tallied" (by the walk, or given in the file), "thinned"
+  // (Binomial(n, 1/2) of whole-number counts) or "none" (weights split evenly).
+  std::string heldout_halves;
   double fit_time_s = 0;
 };
 

@@ -3,6 +3,7 @@
 #include <H5Cpp.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <stdexcept>
@@ -31,12 +32,14 @@ void put_header(H5::H5File& file, const StfModel& m, const FitReport& r, const P
   put_attr(file, "format_version", kFormatVersion);
   put_attr(file, "model", std::string(m.kind == ModelKind::kVmf ? "vmf" : "sh"));
   put_attr(file, "model_spec", p.model_spec);
-  put_attr(file, "sigma_s", m.sigma_s);
-  put_attr(file, "sigma_a", m.sigma_a);
-  put_attr(file, "g", m.g);
-  put_attr(file, "radius", m.radius);
-  put_attr(file, "tau", m.tau);
-  put_attr(file, "albedo", m.albedo);
+  if (m.has_medium()) {  // a model of a table that named no medium carries none
+    put_attr(file, "sigma_s", m.sigma_s);
+    put_attr(file, "sigma_a", m.sigma_a);
+    put_attr(file, "g", m.g);
+    put_attr(file, "radius", m.radius);
+    put_attr(file, "tau", m.tau);
+    put_attr(file, "albedo", m.albedo);
+  }
   put_attr(file, "escape_probability", m.escape_probability);
   put_attr(file, "absorbed_fraction", m.absorbed_fraction);
   put_attr(file, "truncated_fraction", m.truncated_fraction);
@@ -175,12 +178,16 @@ StfModel read_model(const std::string& path) {
     if (kind != "vmf" && kind != "sh")
       throw std::runtime_error("unknown model kind '" + kind + "'");
     m.kind = kind == "vmf" ? ModelKind::kVmf : ModelKind::kSh;
-    m.sigma_s = get_double(file, "sigma_s");
-    m.sigma_a = get_double(file, "sigma_a");
-    m.g = get_double(file, "g");
-    m.radius = get_double(file, "radius");
-    m.tau = get_double(file, "tau");
-    m.albedo = get_double(file, "albedo");
+    if (has_attr(file, "tau")) {
+      m.sigma_s = get_double(file, "sigma_s");
+      m.sigma_a = get_double(file, "sigma_a");
+      m.g = get_double(file, "g");
+      m.radius = get_double(file, "radius");
+      m.tau = get_double(file, "tau");
+      m.albedo = get_double(file, "albedo");
+    } else {
+      m.sigma_s = m.sigma_a = m.g = m.radius = m.tau = m.albedo = std::nan("");
+    }
     m.escape_probability = get_double(file, "escape_probability");
     m.absorbed_fraction = get_double(file, "absorbed_fraction");
     m.truncated_fraction = get_double(file, "truncated_fraction");

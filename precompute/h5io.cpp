@@ -146,6 +146,26 @@ std::string get_string(const H5::H5Object& obj, const char* name) {
 }
 bool has_attr(const H5::H5Object& obj, const char* name) { return obj.attrExists(name); }
 
+void copy_attributes(const H5::H5Object& from, H5::H5Object& to) {
+  for (int i = 0, n = from.getNumAttrs(); i < n; ++i) {
+    H5::Attribute attr = from.openAttribute(unsigned(i));
+    const H5::DataType type = attr.getDataType();
+    const H5::DataSpace space = attr.getSpace();
+    // In the file's own type: variable-length data come as pointers that the write follows and
+    // the reclaim frees.
+    const hid_t memory = H5Tget_native_type(type.getId(), H5T_DIR_DEFAULT);
+    if (memory < 0) throw std::runtime_error("cannot copy attribute " + attr.getName());
+    std::vector<char> buffer(std::size_t(space.getSimpleExtentNpoints()) * H5Tget_size(memory) + 1);
+    const bool ok = H5Aread(attr.getId(), memory, buffer.data()) >= 0;
+    H5::Attribute copy = to.createAttribute(attr.getName(), type, space);
+    const bool written = ok && H5Awrite(copy.getId(), memory, buffer.data()) >= 0;
+    if (ok && (H5Tdetect_class(memory, H5T_VLEN) > 0 || H5Tis_variable_str(memory) > 0))
+      H5Dvlen_reclaim(memory, space.getId(), H5P_DEFAULT, buffer.data());
+    H5Tclose(memory);
+    if (!written) throw std::runtime_error("cannot copy attribute " + attr.getName());
+  }
+}
+
 void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
                  const double* data) {
   put_array(group, name, dims, data, H5::PredType::NATIVE_DOUBLE);

@@ -35,6 +35,8 @@ std::int64_t get_int64(const H5::H5Object& obj, const char* name);
 int get_int(const H5::H5Object& obj, const char* name);
 std::string get_string(const H5::H5Object& obj, const char* name);
 bool has_attr(const H5::H5Object& obj, const char* name);
+// Copies every attribute of `from` (any type and shape, variable-length strings included) to `to`.
+void copy_attributes(const H5::H5Object& from, H5::H5Object& to);
 
 // Row-major dataset; chunked and deflated when large (tables are mostly zeros far from the
 // forward lobe).

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "grid.h"
+#include "minimal_table.h"
 #include "walk.h"
 
 namespace stf {
@@ -191,18 +192,9 @@ std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& 
   table.seed = s.seed;
   table.max_scatter = s.max_scatter;
   table.safety_cap = kSafetyMaxScatter;
-  table.grid = grid->spec();
-  table.alpha_bins = s.alpha_bins;
-  table.cells = grid->cell_count();
   table.chunk_first = range.first, table.chunk_last = range.last, table.chunk_count = range.count;
   table.run_paths = s.paths;
-  for (int i = 0; i <= s.alpha_bins; ++i) table.alpha_edges.push_back(kPi * i / s.alpha_bins);
-  table.alpha_edges.back() = kPi;
-  for (std::int64_t c = 0; c < table.cells; ++c) {
-    Vec3 v = grid->centre(c);
-    table.direction.push_back({v.x, v.y, v.z});
-  }
-  table.solid_angle = grid->solid_angles();
+  lay_out(table, *grid, s.alpha_bins);
   for (int h = 0; h < 2; ++h) table.weight_half[h] = std::move(tally.counts[h]);
   table.escaped_weight = double(tally.escaped);
   table.uncollided_half = {double(tally.uncollided[0]), double(tally.uncollided[1])};

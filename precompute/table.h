@@ -22,8 +22,20 @@ struct Medium {
   double albedo() const { return sigma_s / sigma_t(); }
 };
 
+// How a table's two half-tables came about: tallied by the walk (or given in the file), drawn
+// by Poisson thinning of whole-number counts (each count n splits as Binomial(n, 1/2)), or, for
+// weighted counts, split evenly: then they are no held-out data, and fits choose nothing on them.
+enum class Halves { kTallied, kThinned, kEven };
+
 struct Table {
   Medium medium;
+  // False for a table that names no medium (a histogram stf did not make): the medium's values
+  // are NaN, and its model carries none.
+  bool has_medium = true;
+  Halves halves = Halves::kTallied;
+  // True when the singular parts (uncollided_half, once) hold their expected counts from the
+  // medium rather than the walk's tallies (fit/expected_singular.h).
+  bool singular_expected = false;
   std::int64_t paths = 0;
   std::int64_t seed = 0;
   std::int64_t max_scatter = -1;  // -1: unlimited but for the safety cap
@@ -89,7 +101,10 @@ void write_table(const Table& table, const std::string& path);
 // Why `t` is not a consistent table (values, not just shapes: non-finite or negative weights,
 // totals that do not add up, bad edges or cells), or empty when it is.
 std::string table_error(const Table& t);
-// Reads a table written by write_table (format_version 1) and checks it with table_error.
+// Reads a table written by write_table (format_version 1), or any HDF5 file holding its four
+// datasets (/escape/weight, /escape/alpha_edges, /grid/direction, /grid/solid_angle), and checks
+// it with table_error. What such a file lacks is filled in as docs/formats.md ("Tables stf did
+// not make") says: paths from the weights' sum, the grid from its cells, halves by thinning.
 // Throws std::runtime_error.
 Table read_table(const std::string& path);
 

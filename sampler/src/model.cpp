@@ -163,8 +163,12 @@ int StfModel::blend_weights(int b, double u, int* blend_bins, double* weights) c
 std::string model_error(const StfModel& m) {
   const int bins = m.bins();
   if (bins < 1) return "no alpha bins";
-  if (!(finite_in(m.tau, 0, 1e300) && m.tau > 0 && finite_in(m.albedo, 0, 1) && m.g > -1 && m.g < 1))
+  if (!m.has_medium()) {
+    if (!(std::isnan(m.albedo) && std::isnan(m.g))) return "medium incomplete (tau, albedo and g, or none of them)";
+    if (m.once_fraction != 0) return "a model without a medium has no once-scattered part";
+  } else if (!(finite_in(m.tau, 0, 1e300) && m.tau > 0 && finite_in(m.albedo, 0, 1) && m.g > -1 && m.g < 1)) {
     return "medium out of range (tau > 0, albedo in [0, 1], g in (-1, 1))";
+  }
   if (!finite_in(m.escape_probability, 0, 1) || !finite_in(m.absorbed_fraction, 0, 1) ||
       !finite_in(m.truncated_fraction, 0, 1))
     return "escape, absorbed and truncated fractions must be in [0, 1]";
