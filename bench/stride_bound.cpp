@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "pixel_rng.h"
-#include "scene.h"
+#include "render_scene.h"
 #include "tracer.h"
 
 namespace {

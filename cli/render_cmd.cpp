@@ -17,7 +17,7 @@
 #include "png.h"
 #include "precompute.h"
 #include "render.h"
-#include "scene.h"
+#include "render_scene.h"
 
 namespace stf::cli {
 

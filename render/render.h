@@ -7,7 +7,7 @@
 #include <functional>
 #include <vector>
 
-#include "scene.h"
+#include "render_scene.h"
 #include "tracer.h"
 
 namespace stf::render {

@@ -13,7 +13,7 @@
 
 #include "stf/hg.h"
 #include "pixel_rng.h"
-#include "scene.h"
+#include "render_scene.h"
 
 namespace stf::render {
 

@@ -11,7 +11,7 @@
 
 namespace stf::render {
 
-// The medium is precompute's Medium (table.h): sigma_s, sigma_a, g and the sphere's radius.
+// The medium is core's Medium (table.h): sigma_s, sigma_a, g and the sphere's radius.
 
 inline constexpr double kSkyRadiance = 1;
 inline constexpr double kSunRadiance = 50;
