@@ -16,9 +16,8 @@
 namespace stf::fit {
 
 namespace {
-// Version 2 adds the uncollided fraction, version 3 the once-scattered fraction, version 4 the
-// alpha tilts and blend, version 5 the alpha turns, version 6 blend widths per bin; older
-// versions still load (as fractions, tilts and turns 0, one blend width for every bin).
+// The one layout stf reads; files of other versions are refused in one line naming theirs and
+// the fix (fit the table again).
 constexpr int kFormatVersion = 6;
 }  // namespace
 
@@ -170,9 +169,10 @@ StfModel read_model(const std::string& path) {
     H5::H5File file(path, H5F_ACC_RDONLY);
     if (get_string(file, "format") != "stf-model")
       throw std::runtime_error("not an stf model (format attribute is not 'stf-model')");
-    const int version = get_int(file, "format_version");
-    if (version < 1 || version > kFormatVersion)
-      throw std::runtime_error("unsupported model format_version " + std::to_string(version));
+    if (const int version = get_int(file, "format_version"); version != kFormatVersion)
+      throw std::runtime_error("model format_version " + std::to_string(version) +
+                               (version < kFormatVersion ? " is older" : " is newer") + " than this stf reads (" +
+                               std::to_string(kFormatVersion) + "): fit its table again with this stf (stf fit)");
     StfModel m;
     std::string kind = get_string(file, "model");
     if (kind != "vmf" && kind != "sh")
@@ -191,22 +191,20 @@ StfModel read_model(const std::string& path) {
     m.escape_probability = get_double(file, "escape_probability");
     m.absorbed_fraction = get_double(file, "absorbed_fraction");
     m.truncated_fraction = get_double(file, "truncated_fraction");
-    if (version >= 2) m.uncollided_fraction = get_double(file, "uncollided_fraction");
-    if (version >= 3) m.once_fraction = get_double(file, "once_fraction");
-    m.hemispherical =
-        version >= 3 && has_attr(file, "hemispherical") && get_int(file, "hemispherical") != 0;
-    m.alpha_blend =
-        version >= 4 && has_attr(file, "alpha_blend") ? get_int(file, "alpha_blend") : 0;
+    m.uncollided_fraction = get_double(file, "uncollided_fraction");
+    m.once_fraction = get_double(file, "once_fraction");
+    m.hemispherical = get_int(file, "hemispherical") != 0;
+    m.alpha_blend = get_int(file, "alpha_blend");
     m.alpha_probability = get_dataset(file, "/alpha/probability", {});
     const hsize_t bins = m.alpha_probability.size();
     m.alpha_edges = get_dataset(file, "/alpha/edges", {bins + 1});
     for (std::int32_t s : get_int_dataset(file, "/alpha/status", {bins}))
       m.status.push_back(BinStatus(s));
-    if (version >= 4 && file.nameExists("/alpha/tilt"))
+    if (file.nameExists("/alpha/tilt"))
       m.alpha_tilt = get_dataset(file, "/alpha/tilt", {bins});
-    if (version >= 5 && file.nameExists("/alpha/turn"))
+    if (file.nameExists("/alpha/turn"))
       m.alpha_turn = get_dataset(file, "/alpha/turn", {bins});
-    if (version >= 6 && file.nameExists("/alpha/blend"))
+    if (file.nameExists("/alpha/blend"))
       for (std::int32_t h : get_int_dataset(file, "/alpha/blend", {bins}))
         m.alpha_blend_width.push_back(h);
     if (m.kind == ModelKind::kVmf) {

@@ -23,20 +23,17 @@ std::uint64_t fnv1a(const std::uint8_t* p, std::size_t n) {
 
 std::size_t pad4(std::size_t n) { return (n + 3) & ~std::size_t(3); }
 
-// Record flags: bit 0 hemispherical lobes, bits 1-2 the alpha blend (version 4 on; the widest
-// where bins differ), bit 3 a turn per bin follows the tilts (version 5 on), bit 4 a blend
-// width per bin follows those (version 6 on).
+// Record flags: bit 0 hemispherical lobes, bits 1-2 the alpha blend (the widest where bins
+// differ), bit 3 a turn per bin follows the tilts, bit 4 a blend width per bin follows those.
 constexpr std::uint32_t kTurnsFlag = 8;
 constexpr std::uint32_t kBlendWidthsFlag = 16;
 
-// Float32 values per lobe: weight, kappa and the mean as (x, y, z) up to version 2, as its polar
-// and azimuthal angles since version 3 (a fifth smaller; float32 angles place a mean to ~1e-7
-// rad, below the width of any lobe a table resolves).
-std::size_t floats_per_lobe(std::uint32_t version) { return version >= 3 ? 4 : 5; }
+// Float32 values per lobe: weight, kappa and the mean's polar and azimuthal angles (float32
+// angles place a mean to ~1e-7 rad, below the width of any lobe a table resolves).
+constexpr std::size_t kFloatsPerLobe = 4;
 
-std::size_t parameter_count(int kind, std::uint32_t bins, std::uint32_t size, std::int32_t degree,
-                            std::uint32_t version = kPackVersion) {
-  if (kind == 0) return std::size_t(bins) * size * floats_per_lobe(version);
+std::size_t parameter_count(int kind, std::uint32_t bins, std::uint32_t size, std::int32_t degree) {
+  if (kind == 0) return std::size_t(bins) * size * kFloatsPerLobe;
   std::size_t count = std::size_t(size + 1) * (size + 1);
   return degree >= 0 ? std::size_t(degree + 1) * count : std::size_t(bins) * count;
 }
@@ -154,53 +151,60 @@ bool fail(std::string& error, const std::string& why) {
 
 bool finite(double v) { return std::isfinite(v); }
 
-// One model record; `r` is positioned at its start.
-bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& error) {
-  const std::size_t doubles = version >= 3 ? 8 : version >= 2 ? 7 : 6;
+// A record's fixed fields, before its numbers.
+struct RecordHeader {
+  std::uint32_t record = 0;  // bytes, from its start
+  std::uint32_t kind = 0, bins = 0, size = 0, nz = 0, flags = 0;
+  std::int32_t degree = -1;
+  bool turns() const { return flags & kTurnsFlag; }
+  bool widths() const { return flags & kBlendWidthsFlag; }
+};
+
+// The name and the fixed fields, their ranges checked, and the record's size against them.
+bool read_header(Reader& r, PackEntry& e, RecordHeader& h, std::string& error) {
   const std::size_t start = r.at;
-  const std::uint32_t record = r.get<std::uint32_t>(), name_bytes = r.get<std::uint32_t>();
+  const std::uint32_t record = h.record = r.get<std::uint32_t>(), name_bytes = r.get<std::uint32_t>();
   if (!r.ok || record > r.size - start || record < 8 || name_bytes > record - 8) return fail(error, "truncated model record");
   e.name.assign(reinterpret_cast<const char*>(r.p + r.at), name_bytes);
   r.skip(pad4(name_bytes));
-  const std::uint32_t kind = r.get<std::uint32_t>(), bins = r.get<std::uint32_t>();
-  const std::uint32_t size = r.get<std::uint32_t>(), nz = r.get<std::uint32_t>();
-  const std::int32_t degree = r.get<std::int32_t>();
-  const std::uint32_t flags = r.get<std::uint32_t>();  // reserved (0) before version 3
+  h.kind = r.get<std::uint32_t>(), h.bins = r.get<std::uint32_t>();
+  h.size = r.get<std::uint32_t>(), h.nz = r.get<std::uint32_t>();
+  h.degree = r.get<std::int32_t>();
+  h.flags = r.get<std::uint32_t>();
   if (!r.ok) return fail(error, "truncated model record");
-  if (kind > 1) return fail(error, "unknown model kind " + std::to_string(kind));
-  if (bins < 1 || bins > 100000) return fail(error, "alpha bin count out of range");
-  if (kind == 0 && (size < 1 || size > 64)) return fail(error, "lobe count out of range");
-  if (kind == 1 && (size > 64 || nz < 1 || nz > 256 || degree < -1 || degree > 64 ||
-                    std::size_t(bins) * nz * nz * 2 > (std::size_t(1) << 27)))
+  if (h.kind > 1) return fail(error, "unknown model kind " + std::to_string(h.kind));
+  if (h.bins < 1 || h.bins > 100000) return fail(error, "alpha bin count out of range");
+  if (h.kind == 0 && (h.size < 1 || h.size > 64)) return fail(error, "lobe count out of range");
+  if (h.kind == 1 && (h.size > 64 || h.nz < 1 || h.nz > 256 || h.degree < -1 || h.degree > 64 ||
+                      std::size_t(h.bins) * h.nz * h.nz * 2 > (std::size_t(1) << 27)))
     return fail(error, "SH band limit, table size or alpha degree out of range");
-  // Alpha probability, tilt from version 4, turn from version 5 where the flags say it turns.
-  const bool turns = version >= 5 && (flags & kTurnsFlag);
-  const bool widths = version >= 6 && (flags & kBlendWidthsFlag);
-  const std::size_t per_bin = turns ? 12 : version >= 4 ? 8 : 4;
-  if (std::int64_t(record) != std::int64_t(4 + 4 + pad4(name_bytes) + 6 * 4 + doubles * 8 + per_bin * std::size_t(bins) + pad4(bins) +
-                                            (widths ? pad4(bins) : 0) +
-                                            4 * parameter_count(int(kind), bins, size, kind == 1 ? degree : -1, version)))
+  if (h.flags > (kBlendWidthsFlag | kTurnsFlag | 7u)) return fail(error, "unknown model flags");
+  const std::size_t per_bin = h.turns() ? 12 : 8;  // probability and tilt, and the turn
+  if (std::int64_t(record) != std::int64_t(4 + 4 + pad4(name_bytes) + 6 * 4 + 8 * 8 + per_bin * std::size_t(h.bins) +
+                                            pad4(h.bins) + (h.widths() ? pad4(h.bins) : 0) +
+                                            4 * parameter_count(int(h.kind), h.bins, h.size, h.kind == 1 ? h.degree : -1)))
     return fail(error, "model record size does not match its contents");
+  return true;
+}
 
-  StfModel& m = e.model;
-  m.kind = kind == 0 ? ModelKind::kVmf : ModelKind::kSh;
-  const std::uint32_t blend = (flags >> 1) & (version >= 5 ? 3u : ~0u);
-  if ((version == 3 && flags > 1) || (version == 4 && blend > std::uint32_t(StfModel::kMaxBlend)) ||
-      (version == 5 && flags > (kTurnsFlag | 7u)) || (version >= 6 && flags > (kBlendWidthsFlag | kTurnsFlag | 7u)))
-    return fail(error, "unknown model flags");
-  m.hemispherical = version >= 3 && kind == 0 && (flags & 1);
-  m.alpha_blend = version >= 4 ? int(blend) : 0;
+// The medium and the outcome probabilities.
+bool read_medium(Reader& r, StfModel& m, std::string& error) {
   m.tau = r.get<double>(), m.albedo = r.get<double>(), m.g = r.get<double>();
   m.escape_probability = r.get<double>(), m.absorbed_fraction = r.get<double>(), m.truncated_fraction = r.get<double>();
-  if (version >= 2) m.uncollided_fraction = r.get<double>();
-  if (version >= 3) m.once_fraction = r.get<double>();
+  m.uncollided_fraction = r.get<double>();
+  m.once_fraction = r.get<double>();
   if (!(m.once_fraction >= 0 && m.once_fraction <= 1)) return fail(error, "once-scattered fraction out of range");
   if (!(m.tau > 0 && finite(m.tau) && m.albedo >= 0 && m.albedo <= 1 && m.g > -1 && m.g < 1 &&
         m.escape_probability >= 0 && m.escape_probability <= 1 && finite(m.absorbed_fraction) &&
         finite(m.truncated_fraction)))
     return fail(error, "medium parameters out of range");
+  return true;
+}
+
+// The alpha marginal, the bins' status, tilts, turns and blend widths.
+bool read_alpha(Reader& r, const RecordHeader& h, StfModel& m, std::string& error) {
   double total = 0;
-  for (std::uint32_t b = 0; b < bins; ++b) {
+  for (std::uint32_t b = 0; b < h.bins; ++b) {
     double p = r.get<float>();
     if (!(p >= 0 && finite(p))) return fail(error, "alpha probability is negative or not finite");
     m.alpha_probability.push_back(p);
@@ -211,79 +215,95 @@ bool read_record(Reader& r, PackEntry& e, std::uint32_t version, std::string& er
   if (!(m.uncollided_fraction >= 0 && m.uncollided_fraction <= m.alpha_probability[0] * (1 + 1e-6) + 1e-12))
     return fail(error, "uncollided fraction out of range");
   m.uncollided_fraction = std::min(m.uncollided_fraction, m.alpha_probability[0]);
-  for (std::uint32_t b = 0; b <= bins; ++b) m.alpha_edges.push_back(kPi * b / bins);
-  for (std::uint32_t b = 0; b < bins; ++b) {
+  for (std::uint32_t b = 0; b <= h.bins; ++b) m.alpha_edges.push_back(kPi * b / h.bins);
+  for (std::uint32_t b = 0; b < h.bins; ++b) {
     std::uint8_t s = r.get<std::uint8_t>();
     if (s > 2) return fail(error, "bin status out of range");
     m.status.push_back(BinStatus(s));
   }
-  r.skip(pad4(bins) - bins);
-  for (std::uint32_t b = 0; b < bins && version >= 4; ++b) {
+  r.skip(pad4(h.bins) - h.bins);
+  for (std::uint32_t b = 0; b < h.bins; ++b) {
     const double t = r.get<float>();
     if (!(std::abs(t) <= kMaxTilt)) return fail(error, "alpha tilt out of range");
     m.alpha_tilt.push_back(t);
   }
-  for (std::uint32_t b = 0; b < bins && turns; ++b) {
+  for (std::uint32_t b = 0; b < h.bins && h.turns(); ++b) {
     const double turn = r.get<float>();
     if (!(std::abs(turn) <= StfModel::kMaxTurn)) return fail(error, "alpha turn out of range");
     m.alpha_turn.push_back(turn);
   }
-  for (std::uint32_t b = 0; b < bins && widths; ++b) {
-    const int h = r.get<std::uint8_t>();
-    if (h > m.alpha_blend) return fail(error, "alpha blend width out of range");
-    m.alpha_blend_width.push_back(h);
+  for (std::uint32_t b = 0; b < h.bins && h.widths(); ++b) {
+    const int width = r.get<std::uint8_t>();
+    if (width > m.alpha_blend) return fail(error, "alpha blend width out of range");
+    m.alpha_blend_width.push_back(width);
   }
-  if (widths) r.skip(pad4(bins) - bins);
-  if (kind == 0) {
-    m.lobes = int(size);
-    for (std::size_t i = 0; i < std::size_t(bins) * size; ++i) {
-      double w = r.get<float>(), k = r.get<float>(), x, y, z;
-      if (version >= 3) {
-        const double theta = r.get<float>(), phi = r.get<float>();
-        if (!(theta >= -1e-6 && theta <= kPi + 1e-6 && std::abs(phi) <= kPi + 1e-6))
-          return fail(error, "vMF lobe parameters out of range");
-        x = std::sin(theta) * std::cos(phi), y = std::sin(theta) * std::sin(phi), z = std::cos(theta);
-      } else {
-        x = r.get<float>(), y = r.get<float>(), z = r.get<float>();
-      }
-      double len = std::sqrt(x * x + y * y + z * z);
-      if (!(w >= 0 && finite(w) && k >= 0 && k <= 1e9 && finite(len) && len > 0.5 && len < 2))
-        return fail(error, "vMF lobe parameters out of range");
-      m.vmf.push_back({w, k, {x / len, y / len, z / len}});
-    }
-    for (std::uint32_t b = 0; b < bins; ++b) {
-      double s = 0;
-      for (std::uint32_t k = 0; k < size; ++k) s += m.vmf[b * size + k].weight;
-      if (std::abs(s - 1) > 1e-4) return fail(error, "vMF weights of a bin do not sum to 1");
-      for (std::uint32_t k = 0; k < size; ++k) m.vmf[b * size + k].weight /= s;
-    }
-    m.rebuild_lobe_norms();
-  } else {
-    m.band_limit = int(size);
-    m.sh_nz = int(nz);
-    m.alpha_degree = degree;
-    std::vector<double>& target = degree >= 0 ? m.sh_chebyshev : m.sh;
-    for (std::size_t i = 0; i < parameter_count(1, bins, size, degree); ++i) {
-      double v = r.get<float>();
-      if (!(std::abs(v) <= 1e6)) return fail(error, "SH coefficient out of range");
-      target.push_back(v);
-    }
-    if (degree >= 0) {  // evaluate the Chebyshev series at the bin centres
-      const int count = sh_count(int(size));
-      m.sh.assign(std::size_t(bins) * count, 0.0);
-      for (std::uint32_t b = 0; b < bins; ++b) {
-        double x = std::cos(kPi * (b + 0.5) / bins);
-        for (int j = 0; j <= degree; ++j) {
-          double t = std::cos(j * std::acos(x));
-          for (int i = 0; i < count; ++i) m.sh[std::size_t(b) * count + i] += t * m.sh_chebyshev[std::size_t(j) * count + i];
-        }
-      }
-    }
-    m.rebuild_sh_tables();
-    for (float v : m.sh_table)
-      if (!std::isfinite(v)) return fail(error, "SH density not finite");
+  if (h.widths()) r.skip(pad4(h.bins) - h.bins);
+  return true;
+}
+
+// vMF lobes: weight, kappa and the mean's angles; each bin's weights renormalised.
+bool read_lobes(Reader& r, const RecordHeader& h, StfModel& m, std::string& error) {
+  m.lobes = int(h.size);
+  for (std::size_t i = 0; i < std::size_t(h.bins) * h.size; ++i) {
+    const double w = r.get<float>(), k = r.get<float>(), theta = r.get<float>(), phi = r.get<float>();
+    if (!(theta >= -1e-6 && theta <= kPi + 1e-6 && std::abs(phi) <= kPi + 1e-6))
+      return fail(error, "vMF lobe parameters out of range");
+    const double x = std::sin(theta) * std::cos(phi), y = std::sin(theta) * std::sin(phi), z = std::cos(theta);
+    const double len = std::sqrt(x * x + y * y + z * z);
+    if (!(w >= 0 && finite(w) && k >= 0 && k <= 1e9 && finite(len) && len > 0.5 && len < 2))
+      return fail(error, "vMF lobe parameters out of range");
+    m.vmf.push_back({w, k, {x / len, y / len, z / len}});
   }
-  if (!r.ok || r.at != start + record) return fail(error, "model record size does not match its contents");
+  for (std::uint32_t b = 0; b < h.bins; ++b) {
+    double s = 0;
+    for (std::uint32_t k = 0; k < h.size; ++k) s += m.vmf[b * h.size + k].weight;
+    if (std::abs(s - 1) > 1e-4) return fail(error, "vMF weights of a bin do not sum to 1");
+    for (std::uint32_t k = 0; k < h.size; ++k) m.vmf[b * h.size + k].weight /= s;
+  }
+  m.rebuild_lobe_norms();
+  return true;
+}
+
+// SH coefficients per bin, or a Chebyshev series across alpha evaluated at the bin centres.
+bool read_sh(Reader& r, const RecordHeader& h, StfModel& m, std::string& error) {
+  m.band_limit = int(h.size);
+  m.sh_nz = int(h.nz);
+  m.alpha_degree = h.degree;
+  std::vector<double>& target = h.degree >= 0 ? m.sh_chebyshev : m.sh;
+  for (std::size_t i = 0; i < parameter_count(1, h.bins, h.size, h.degree); ++i) {
+    double v = r.get<float>();
+    if (!(std::abs(v) <= 1e6)) return fail(error, "SH coefficient out of range");
+    target.push_back(v);
+  }
+  if (h.degree >= 0) {
+    const int count = sh_count(int(h.size));
+    m.sh.assign(std::size_t(h.bins) * count, 0.0);
+    for (std::uint32_t b = 0; b < h.bins; ++b) {
+      double x = std::cos(kPi * (b + 0.5) / h.bins);
+      for (int j = 0; j <= h.degree; ++j) {
+        double t = std::cos(j * std::acos(x));
+        for (int i = 0; i < count; ++i) m.sh[std::size_t(b) * count + i] += t * m.sh_chebyshev[std::size_t(j) * count + i];
+      }
+    }
+  }
+  m.rebuild_sh_tables();
+  for (float v : m.sh_table)
+    if (!std::isfinite(v)) return fail(error, "SH density not finite");
+  return true;
+}
+
+// One model record; `r` is positioned at its start.
+bool read_record(Reader& r, PackEntry& e, std::string& error) {
+  const std::size_t start = r.at;
+  RecordHeader h;
+  if (!read_header(r, e, h, error)) return false;
+  StfModel& m = e.model;
+  m.kind = h.kind == 0 ? ModelKind::kVmf : ModelKind::kSh;
+  m.hemispherical = h.kind == 0 && (h.flags & 1);
+  m.alpha_blend = int((h.flags >> 1) & 3u);
+  if (!read_medium(r, m, error) || !read_alpha(r, h, m, error)) return false;
+  if (!(h.kind == 0 ? read_lobes(r, h, m, error) : read_sh(r, h, m, error))) return false;
+  if (!r.ok || r.at != start + h.record) return fail(error, "model record size does not match its contents");
   return true;
 }
 
@@ -297,13 +317,16 @@ bool read_pack(const std::uint8_t* data, std::size_t size, std::vector<PackEntry
   Reader r{data, size, 8};
   const std::uint32_t version = r.get<std::uint32_t>(), count = r.get<std::uint32_t>();
   const std::uint64_t payload = r.get<std::uint64_t>(), checksum = r.get<std::uint64_t>();
-  if (version < 1 || version > kPackVersion) return fail(error, "unsupported pack version " + std::to_string(version));
+  if (version != kPackVersion)
+    return fail(error, "pack version " + std::to_string(version) + (version < kPackVersion ? " is older" : " is newer") +
+                           " than this library reads (" + std::to_string(kPackVersion) +
+                           "): build the pack again with this stf (stf pack, stf build), fitting its tables again (stf fit)");
   if (payload != size - kHeaderBytes) return fail(error, "pack size does not match its header (truncated?)");
   if (fnv1a(data + kHeaderBytes, payload) != checksum) return fail(error, "pack checksum mismatch (corrupted)");
   if (count > payload / 100 + 1) return fail(error, "model count out of range");
   for (std::uint32_t i = 0; i < count; ++i) {
     PackEntry e;
-    if (!read_record(r, e, version, error)) {
+    if (!read_record(r, e, error)) {
       entries.clear();
       error = "model " + std::to_string(i) + ": " + error;
       return false;

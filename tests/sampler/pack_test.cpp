@@ -23,55 +23,17 @@ Vec3 random_direction(std::uint64_t& s) {
   return {r * std::cos(phi), r * std::sin(phi), z};
 }
 
-// A version-2 pack of one unnamed vMF model, written field by field from pack.h's layout: no
-// once-scattered fraction, lobe means as (x, y, z).
-std::vector<std::uint8_t> version2_pack(const StfModel& m) {
-  std::vector<std::uint8_t> payload, pack;
-  auto put = [](std::vector<std::uint8_t>& out, const auto& v) {
-    const auto* p = reinterpret_cast<const std::uint8_t*>(&v);
-    out.insert(out.end(), p, p + sizeof v);
-  };
-  const std::uint32_t bins = std::uint32_t(m.bins()), lobes = std::uint32_t(m.lobes), padded = (bins + 3) / 4 * 4;
-  put(payload, std::uint32_t(8 + 6 * 4 + 7 * 8 + 4 * bins + padded + 4 * bins * lobes * 5));
-  put(payload, std::uint32_t(0));
-  for (std::uint32_t v : {0u, bins, lobes, 0u}) put(payload, v);
-  put(payload, std::int32_t(-1));
-  put(payload, std::uint32_t(0));
-  for (double v : {m.tau, m.albedo, m.g, m.escape_probability, m.absorbed_fraction, m.truncated_fraction,
-                   m.uncollided_fraction})
-    put(payload, v);
-  for (double p : m.alpha_probability) put(payload, float(p));
-  for (std::uint32_t b = 0; b < padded; ++b) put(payload, std::uint8_t(b < bins ? std::uint8_t(m.status[b]) : 0));
-  for (const VmfLobe& l : m.vmf)
-    for (double v : {l.weight, l.kappa, l.mean.x, l.mean.y, l.mean.z}) put(payload, float(v));
-  std::uint64_t h = 0xcbf29ce484222325ull;
-  for (std::uint8_t byte : payload) h = (h ^ byte) * 0x100000001b3ull;
-  for (char c : std::string("STFPACK1")) put(pack, c);
-  for (std::uint32_t v : {2u, 1u}) put(pack, v);
-  put(pack, std::uint64_t(payload.size()));
-  put(pack, h);
-  pack.insert(pack.end(), payload.begin(), payload.end());
-  return pack;
-}
-
-TEST(Pack, VersionTwoPacksStillLoad) {
-  StfModel m = test::make_vmf_model();
-  m.uncollided_fraction = 0.2 * m.alpha_probability[0];
-  std::vector<std::uint8_t> bytes = version2_pack(m);
+// A pack of another version is refused in one line naming its version and the fix.
+TEST(Pack, PacksOfOtherVersionsAreRefusedNamingTheFix) {
+  std::vector<std::uint8_t> bytes = write_pack({PackEntry{"", test::make_vmf_model()}});
   std::vector<PackEntry> out;
   std::string error;
   ASSERT_TRUE(read_pack(bytes.data(), bytes.size(), out, error)) << error;
-  ASSERT_EQ(out.size(), 1u);
-  const StfModel& v2 = out[0].model;
-  EXPECT_EQ(v2.once_fraction, 0);
-  EXPECT_TRUE(v2.alpha_tilt.empty());
-  EXPECT_EQ(v2.alpha_blend, 0);
-  EXPECT_EQ(v2.uncollided_fraction, m.uncollided_fraction);
-  ASSERT_EQ(v2.vmf.size(), m.vmf.size());
-  for (std::size_t i = 0; i < m.vmf.size(); ++i) {
-    EXPECT_NEAR(v2.vmf[i].kappa, m.vmf[i].kappa, 1e-6 * m.vmf[i].kappa);
-    EXPECT_NEAR(dot(v2.vmf[i].mean, m.vmf[i].mean), 1, 1e-12);
-  }
+  bytes[8] = std::uint8_t(kPackVersion - 1);  // the header's version, outside the checksum
+  EXPECT_FALSE(read_pack(bytes.data(), bytes.size(), out, error));
+  EXPECT_NE(error.find("pack version " + std::to_string(kPackVersion - 1) + " is older"), std::string::npos) << error;
+  EXPECT_NE(error.find("stf pack"), std::string::npos) << error;
+  EXPECT_TRUE(out.empty());
 }
 
 std::vector<PackEntry> round_trip(const std::vector<PackEntry>& in) {

@@ -1,23 +1,21 @@
 // The compact binary pack a renderer loads: one or many fitted models with their media.
 //
 // Layout (all little-endian):
-//   header, 32 bytes: magic "STFPACK1", u32 version (1), u32 model count,
+//   header, 32 bytes: magic "STFPACK1", u32 version (kPackVersion), u32 model count,
 //                     u64 payload bytes, u64 FNV-1a 64 checksum of the payload
 //   payload: the model records back to back, each
 //     u32 record bytes, u32 name bytes, name (UTF-8, no terminator),
 //     u32 kind (0 vmf, 1 sh), u32 bins, u32 lobes or band limit, u32 SH table nz,
-//     i32 alpha degree (-1: none), u32 flags (version >= 3; bit 0: hemispherical vMF lobes;
-//         bits 1-2 (version >= 4): the alpha blend width, 0-3, the widest where bins differ;
-//         bit 3 (version >= 5): alpha turns follow; bit 4 (version >= 6): blend widths follow;
-//         reserved before),
+//     i32 alpha degree (-1: none), u32 flags (bit 0: hemispherical vMF lobes; bits 1-2: the
+//         alpha blend width, 0-3, the widest where bins differ; bit 3: alpha turns follow;
+//         bit 4: blend widths follow),
 //     f64 tau, albedo, g, escape probability, absorbed fraction, truncated fraction,
-//         uncollided fraction (version >= 2), once-scattered fraction (version >= 3),
+//         uncollided fraction, once-scattered fraction,
 //     f32 alpha probability [bins], u8 bin status [bins] padded to 4 bytes,
-//     f32 alpha tilt [bins] (version >= 4; stf/tilt.h),
-//     f32 alpha turn [bins] (version >= 5 with flag bit 3),
-//     u8 alpha blend width [bins] padded to 4 bytes (version >= 6 with flag bit 4),
-//     vmf: f32 [bins * lobes * 4] (weight, kappa, mean's polar and azimuthal angle; up to
-//          version 2 f32 [bins * lobes * 5] (weight, kappa, mean x, y, z))
+//     f32 alpha tilt [bins] (stf/tilt.h),
+//     f32 alpha turn [bins] (with flag bit 3),
+//     u8 alpha blend width [bins] padded to 4 bytes (with flag bit 4),
+//     vmf: f32 [bins * lobes * 4] (weight, kappa, mean's polar and azimuthal angle)
 //     sh:  f32 [bins * (L+1)^2], or with alpha degree D >= 0 f32 [(D+1) * (L+1)^2]
 // Alpha bins are linear on [0, pi]. Loading validates everything: a truncated, corrupted or
 // foreign file gives an error message, never undefined behaviour.
@@ -31,11 +29,9 @@
 
 namespace stf {
 
-// Version 2 adds each model's uncollided fraction, version 3 its once-scattered fraction (after
-// the uncollided one), version 4 the alpha tilts and blend, version 5 the alpha turns (a flag and
-// one float per bin, only in models that turn), version 6 a blend width per bin (a flag and one
-// byte per bin, only where the widths differ); older packs still load (fractions, tilts and
-// turns 0, one blend width for every bin).
+// The one layout this library reads. Packs of other versions are refused in one line naming
+// theirs and the fix: build the pack again (stf pack, stf build), from models fitted again where
+// they are older too.
 inline constexpr std::uint32_t kPackVersion = 6;
 
 struct PackEntry {
