@@ -46,29 +46,28 @@ std::vector<ShSmoothing> sh_smoothings() {
   return out;
 }
 
-HeldOut heldout_for_size(const Escapes& e, const FitSettings& s, int size, const DirectionGrid& grid,
-                         const QuadratureLevels& levels, ShSmoothing& best_t, BinFits& fitted,
-                         const BinFits* smaller, const Pooling* pool) {
+SizeTrial heldout_for_size(const Escapes& e, const FitSettings& s, Pass pass, const DirectionGrid& grid,
+                           const QuadratureLevels& levels) {
   std::unique_ptr<ShProjector> projector;
   std::vector<double> basis;
   if (s.kind == ModelKind::kSh) {
-    projector = std::make_unique<ShProjector>(grid, size);
-    basis = sh_basis_at(levels.at(1), size);
+    projector = std::make_unique<ShProjector>(grid, pass.size);
+    basis = sh_basis_at(levels.at(1), pass.size);
   }
-  BinFits& fits = fitted = fit_bins(e, 0, s.kind, size, levels, projector.get(), s, smaller, pool);
+  pass.half = 0, pass.projector = projector.get();
+  SizeTrial trial;
+  trial.fits = fit_bins(e, pass, levels, s);
   const Table& t = e.table;
-  HeldOut best;
-  best_t = {};
-  if (cancelled(s)) return best;  // bins were skipped: nothing to score
+  if (cancelled(s)) return trial;  // bins were skipped: nothing to score
   for (const ShSmoothing& smoothing : s.kind == ModelKind::kSh ? sh_smoothings() : std::vector<ShSmoothing>{{}}) {
     std::vector<std::vector<double>> p(t.alpha_bins);
     for_each_bin(t.alpha_bins, s,
-                 [&](int b) { p[b] = bin_probabilities(fits, b, s.kind, size, smoothing, levels, basis); });
+                 [&](int b) { p[b] = bin_probabilities(trial.fits, b, smoothing, levels, basis); });
     if (cancelled(s)) return {};  // some bins were skipped
     HeldOut h = score(e, 1, p);
-    if (best.log_p.empty() || h.nll < best.nll) best = std::move(h), best_t = smoothing;
+    if (trial.score.log_p.empty() || h.nll < trial.score.nll) trial.score = std::move(h), trial.smoothing = smoothing;
   }
-  return best;
+  return trial;
 }
 
 SizeChoice choose_size(const Escapes& e, const FitSettings& s, const DirectionGrid& grid, const QuadratureLevels& levels,
@@ -84,12 +83,11 @@ SizeChoice choose_size(const Escapes& e, const FitSettings& s, const DirectionGr
   double lowest = std::numeric_limits<double>::infinity();
   int misses = 0;
   for (int candidate : sizes) {
-    ShSmoothing best_t;
-    BinFits fitted;
-    scores.push_back(heldout_for_size(e, s, candidate, grid, levels, best_t, fitted,
-                                      c.half_fits.empty() ? nullptr : &c.half_fits.back()));
-    c.half_fits.push_back(std::move(fitted));
-    ts.push_back(best_t);
+    SizeTrial trial = heldout_for_size(e, s, {-1, candidate, nullptr, c.half_fits.empty() ? nullptr : &c.half_fits.back()},
+                                       grid, levels);
+    scores.push_back(std::move(trial.score));
+    c.half_fits.push_back(std::move(trial.fits));
+    ts.push_back(trial.smoothing);
     if (cancelled(s)) return c;
     if (scores.back().nll < lowest) lowest = scores.back().nll, misses = 0;
     else if (++misses == 2) break;

@@ -102,7 +102,7 @@ void diagnose(const BinFits& fits, const FitSettings& s, const StfModel& m, cons
     }
     if (d.escapes <= 0 || m.status[std::size_t(b)] != BinStatus::kFitted) return;
     std::vector<double> p = s.kind == ModelKind::kVmf
-                                ? bin_probabilities(fits, b, s.kind, size, {}, levels, {})
+                                ? bin_probabilities(fits, b, {}, levels, {})
                                 : density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, w); },
                                                              levels.at(2));
     d.deviance = poisson_deviance(counts, p);

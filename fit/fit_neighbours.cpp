@@ -46,15 +46,13 @@ std::vector<PoolTry> choose_pooling(const Escapes& e, const FitSettings& s, cons
   for (int candidate : next == all.end() ? std::vector<int>{size} : std::vector<int>{size, *next}) {
     const auto tried = std::find(sizes.begin(), sizes.end(), candidate);
     const Pooling pool{nearest, tried == sizes.end() ? nullptr : &c.half_fits[std::size_t(tried - sizes.begin())]};
-    ShSmoothing unused;
-    BinFits pooled;
-    HeldOut h = heldout_for_size(e, s, candidate, grid, levels, unused, pooled, &fits, &pool);
+    SizeTrial pooled = heldout_for_size(e, s, {-1, candidate, nullptr, &fits, &pool}, grid, levels);
     if (cancelled(s)) return alone;
     r.pool_sizes.push_back(candidate);
-    r.pool_heldout_nll.push_back(h.nll);
-    if (h.nll < score.nll) {
+    r.pool_heldout_nll.push_back(pooled.score.nll);
+    if (pooled.score.nll < score.nll) {
       size = candidate, chosen = nearest;
-      fits = std::move(pooled), score = std::move(h);
+      fits = std::move(pooled.fits), score = std::move(pooled.score);
     }
   }
   r.neighbour_weight = chosen == alone ? 0 : kNeighbourWeight;
@@ -83,10 +81,10 @@ void wide_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& g
       if ((tried.sloped ? noisy(e, b, size) : capped_by_escapes(e, b, size)) && pools[std::size_t(b)] != tried)
         pool.bin[std::size_t(b)] = tried;
     if (!pool.any()) continue;
-    ShSmoothing unused;
-    BinFits pooled;
-    HeldOut h = heldout_for_size(e, s, size, grid, levels, unused, pooled, &fits, &pool);
+    SizeTrial trial = heldout_for_size(e, s, {-1, size, nullptr, &fits, &pool}, grid, levels);
     if (cancelled(s)) return;
+    BinFits& pooled = trial.fits;
+    HeldOut& h = trial.score;
     const std::vector<double> gain = pooled_gain(pool, score, h);
     for (int b = 0; b < bins; ++b) {
       if (pool.bin[std::size_t(b)].width == 0 || !(gain[std::size_t(b)] > 0)) continue;

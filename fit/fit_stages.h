@@ -150,6 +150,8 @@ void fill_borrowed(std::vector<BinStatus>& status, std::vector<P>& params, const
 // Everything one pass of fitting (on the full table or one half) produces.
 struct BinFits {
   const Table* table = nullptr;
+  ModelKind kind = ModelKind::kVmf;
+  int size = 0;  // lobes or band limit
   bool hemispherical = false;
   std::vector<BinTurn> turns;  // how the fitted densities turn across their bins (empty: they stand still)
   std::vector<BinStatus> status;
@@ -183,16 +185,24 @@ struct Pooling {
   PoolTry of(int b) const { return bin.empty() ? PoolTry{} : bin[std::size_t(b)]; }
 };
 
-// `start`: fits (on a half-table, of this size or smaller) to start the lobes from, or null;
-// missing lobes come from splitting the heaviest ones (grow_lobes). `pool` (vmf): a bin of
-// width w > 0 has its lobes fitted to its own escapes and, with weights pool_weight(w, d), to
-// those of the bins d <= w away, expected where the bin's go turned about y by the difference of
-// their headings (the forward peak turns with the exit point: docs/fit.md, "The
-// pipeline"), and continued linearly in alpha where the pool is sloped; it gets a lobe per
-// kEscapesPerLobe of all the escapes so weighted.
-BinFits fit_bins(const Escapes& e, int half, ModelKind kind, int size, const QuadratureLevels& levels,
-                 const ShProjector* projector, const FitSettings& s, const BinFits* start = nullptr,
-                 const Pooling* pool = nullptr);
+// One pass of fit_bins: the half-table (0 or 1) or the whole table (-1), the size, and where
+// the lobes start and reach. `start`: fits (on a half-table, of this size or smaller) to start
+// the lobes from, or null; missing lobes come from splitting the heaviest ones (grow_lobes).
+// `pool` (vmf): a bin of width w > 0 has its lobes fitted to its own escapes and, with weights
+// pool_weight(w, d), to those of the bins d <= w away, expected where the bin's go turned about
+// y by the difference of their headings (the forward peak turns with the exit point:
+// docs/fit.md, "The pipeline"), and continued linearly in alpha where the pool is sloped; it
+// gets a lobe per kEscapesPerLobe of all the escapes so weighted.
+struct Pass {
+  int half = -1;
+  int size = 0;                            // lobes or band limit
+  const ShProjector* projector = nullptr;  // SH
+  const BinFits* start = nullptr;
+  const Pooling* pool = nullptr;
+};
+
+// Fits every bin of `s.kind` for the pass; bins with too few escapes borrow a neighbour's.
+BinFits fit_bins(const Escapes& e, const Pass& pass, const QuadratureLevels& levels, const FitSettings& s);
 
 // Cell probabilities of vMF lobes of `fits`' kind in a bin of edges [a0, a1] that stands still:
 // hemispherical lobes times the edges' outward factor.
@@ -200,8 +210,8 @@ std::vector<double> lobe_cells(const BinFits& fits, const std::vector<VmfLobe>& 
                                double escapes, double a0, double a1);
 
 // Cell probabilities of bin b under fitted parameters (vMF, or clamped smoothed SH).
-std::vector<double> bin_probabilities(const BinFits& fits, int b, ModelKind kind, int size, const ShSmoothing& t,
-                                      const QuadratureLevels& levels, const std::vector<double>& sh_basis);
+std::vector<double> bin_probabilities(const BinFits& fits, int b, const ShSmoothing& t, const QuadratureLevels& levels,
+                                      const std::vector<double>& sh_basis);
 
 // Held-out negative log-likelihood of half `half` under probabilities per bin, with p mixed
 // 1e-6 with the uniform density so that a cell the model calls empty costs a finite amount.
@@ -222,12 +232,18 @@ double difference_error(const Escapes& e, int half, const HeldOut& a, const Held
 // fit is never forced to smooth more than the data want.
 std::vector<ShSmoothing> sh_smoothings();
 
-// Fits on half 0, scores on half 1. For SH, also picks the smoothing with the lowest held-out
-// NLL; returns it in `best_t`, and the fits in `fitted`. vMF lobes start from the fits of the
-// next smaller candidate when there are any; `pool` as fit_bins.
-HeldOut heldout_for_size(const Escapes& e, const FitSettings& s, int size, const DirectionGrid& grid,
-                         const QuadratureLevels& levels, ShSmoothing& best_t, BinFits& fitted,
-                         const BinFits* smaller, const Pooling* pool = nullptr);
+// A size tried on the held-out half: the fits on half 0 and their score on half 1, and for SH
+// the smoothing with the lowest held-out NLL.
+struct SizeTrial {
+  HeldOut score;
+  ShSmoothing smoothing;
+  BinFits fits;
+};
+
+// Fits the pass on half 0 (`pass.half` is ignored) and scores it on half 1. vMF lobes start
+// from `pass.start` when given (the next smaller candidate's fits).
+SizeTrial heldout_for_size(const Escapes& e, const FitSettings& s, Pass pass, const DirectionGrid& grid,
+                           const QuadratureLevels& levels);
 
 // The model size: given, or the candidate with the lowest held-out NLL, an unbiased estimate of
 // the model's cross-entropy with the truth. (A rule that prefers smaller models within noise

@@ -69,8 +69,9 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   // The final fit on the whole table, from the chosen half-table fits.
   std::unique_ptr<ShProjector> projector;
   if (s.kind == ModelKind::kSh) projector = std::make_unique<ShProjector>(*grid, choice.size);
-  const BinFits fits = fit_bins(seen, -1, s.kind, choice.size, levels, projector.get(), s,
-                                choice.fits.status.empty() ? nullptr : &choice.fits, &near.pool);
+  const BinFits fits = fit_bins(
+      seen, {-1, choice.size, projector.get(), choice.fits.status.empty() ? nullptr : &choice.fits, &near.pool}, levels,
+      s);
   if (cancelled(s)) return {};
   // Outcomes (singular parts, the rest, absorption) and directions make the model.
   StfModel m = assemble_model(seen, s, alpha, choice, near, fits);

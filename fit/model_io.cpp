@@ -163,72 +163,87 @@ void write_model(const StfModel& m, const FitReport& r, const Provenance& p,
   replace_file(path, model_file(m, r, p));
 }
 
+namespace {
+
+// The root attributes: format and version, kind, medium (absent: none named) and fractions.
+StfModel get_header(H5::H5File& file) {
+  if (get_string(file, "format") != "stf-model")
+    throw std::runtime_error("not an stf model (format attribute is not 'stf-model')");
+  if (const int version = get_int(file, "format_version"); version != kFormatVersion)
+    throw std::runtime_error("model format_version " + std::to_string(version) +
+                             (version < kFormatVersion ? " is older" : " is newer") + " than this stf reads (" +
+                             std::to_string(kFormatVersion) + "): fit its table again with this stf (stf fit)");
+  StfModel m;
+  std::string kind = get_string(file, "model");
+  if (kind != "vmf" && kind != "sh") throw std::runtime_error("unknown model kind '" + kind + "'");
+  m.kind = kind == "vmf" ? ModelKind::kVmf : ModelKind::kSh;
+  if (has_attr(file, "tau")) {
+    m.sigma_s = get_double(file, "sigma_s");
+    m.sigma_a = get_double(file, "sigma_a");
+    m.g = get_double(file, "g");
+    m.radius = get_double(file, "radius");
+    m.tau = get_double(file, "tau");
+    m.albedo = get_double(file, "albedo");
+  } else {
+    m.sigma_s = m.sigma_a = m.g = m.radius = m.tau = m.albedo = std::nan("");
+  }
+  m.escape_probability = get_double(file, "escape_probability");
+  m.absorbed_fraction = get_double(file, "absorbed_fraction");
+  m.truncated_fraction = get_double(file, "truncated_fraction");
+  m.uncollided_fraction = get_double(file, "uncollided_fraction");
+  m.once_fraction = get_double(file, "once_fraction");
+  m.hemispherical = get_int(file, "hemispherical") != 0;
+  m.alpha_blend = get_int(file, "alpha_blend");
+  return m;
+}
+
+// /alpha: the marginal, edges and status, and the optional tilts, turns and blend widths.
+void get_alpha(H5::H5File& file, StfModel& m) {
+  m.alpha_probability = get_dataset(file, "/alpha/probability", {});
+  const hsize_t bins = m.alpha_probability.size();
+  m.alpha_edges = get_dataset(file, "/alpha/edges", {bins + 1});
+  for (std::int32_t s : get_int_dataset(file, "/alpha/status", {bins})) m.status.push_back(BinStatus(s));
+  if (file.nameExists("/alpha/tilt")) m.alpha_tilt = get_dataset(file, "/alpha/tilt", {bins});
+  if (file.nameExists("/alpha/turn")) m.alpha_turn = get_dataset(file, "/alpha/turn", {bins});
+  if (file.nameExists("/alpha/blend"))
+    for (std::int32_t h : get_int_dataset(file, "/alpha/blend", {bins})) m.alpha_blend_width.push_back(h);
+}
+
+// /vmf or /sh: the bins' direction densities.
+void get_directions(H5::H5File& file, StfModel& m) {
+  const hsize_t bins = m.alpha_probability.size();
+  if (m.kind == ModelKind::kVmf) {
+    m.lobes = get_int(file.openGroup("/vmf"), "lobes");
+    if (m.lobes < 1 || m.lobes > 64) throw std::runtime_error("vMF lobe count out of range");
+    const hsize_t k = hsize_t(m.lobes);
+    std::vector<double> w = get_dataset(file, "/vmf/weight", {bins, k});
+    std::vector<double> kappa = get_dataset(file, "/vmf/kappa", {bins, k});
+    std::vector<double> mean = get_dataset(file, "/vmf/mean", {bins, k, 3});
+    for (std::size_t i = 0; i < w.size(); ++i) m.vmf.push_back({w[i], kappa[i], {mean[3 * i], mean[3 * i + 1], mean[3 * i + 2]}});
+    return;
+  }
+  H5::Group g = file.openGroup("/sh");
+  m.band_limit = get_int(g, "band_limit");
+  m.sh_nz = get_int(g, "table_nz");
+  if (m.band_limit < 0 || m.band_limit > 64 || m.sh_nz < 1 || m.sh_nz > 4096)
+    throw std::runtime_error("SH band limit or table size out of range");
+  m.sh = get_dataset(file, "/sh/coefficients", {bins, hsize_t(sh_count(m.band_limit))});
+  m.alpha_degree = get_int(g, "alpha_degree");
+  if (m.alpha_degree >= 0)
+    m.sh_chebyshev =
+        get_dataset(file, "/sh/chebyshev", {hsize_t(m.alpha_degree + 1), hsize_t(sh_count(m.band_limit))});
+  m.rebuild_sh_tables();
+}
+
+}  // namespace
+
 StfModel read_model(const std::string& path) {
   try {
     H5::Exception::dontPrint();
     H5::H5File file(path, H5F_ACC_RDONLY);
-    if (get_string(file, "format") != "stf-model")
-      throw std::runtime_error("not an stf model (format attribute is not 'stf-model')");
-    if (const int version = get_int(file, "format_version"); version != kFormatVersion)
-      throw std::runtime_error("model format_version " + std::to_string(version) +
-                               (version < kFormatVersion ? " is older" : " is newer") + " than this stf reads (" +
-                               std::to_string(kFormatVersion) + "): fit its table again with this stf (stf fit)");
-    StfModel m;
-    std::string kind = get_string(file, "model");
-    if (kind != "vmf" && kind != "sh")
-      throw std::runtime_error("unknown model kind '" + kind + "'");
-    m.kind = kind == "vmf" ? ModelKind::kVmf : ModelKind::kSh;
-    if (has_attr(file, "tau")) {
-      m.sigma_s = get_double(file, "sigma_s");
-      m.sigma_a = get_double(file, "sigma_a");
-      m.g = get_double(file, "g");
-      m.radius = get_double(file, "radius");
-      m.tau = get_double(file, "tau");
-      m.albedo = get_double(file, "albedo");
-    } else {
-      m.sigma_s = m.sigma_a = m.g = m.radius = m.tau = m.albedo = std::nan("");
-    }
-    m.escape_probability = get_double(file, "escape_probability");
-    m.absorbed_fraction = get_double(file, "absorbed_fraction");
-    m.truncated_fraction = get_double(file, "truncated_fraction");
-    m.uncollided_fraction = get_double(file, "uncollided_fraction");
-    m.once_fraction = get_double(file, "once_fraction");
-    m.hemispherical = get_int(file, "hemispherical") != 0;
-    m.alpha_blend = get_int(file, "alpha_blend");
-    m.alpha_probability = get_dataset(file, "/alpha/probability", {});
-    const hsize_t bins = m.alpha_probability.size();
-    m.alpha_edges = get_dataset(file, "/alpha/edges", {bins + 1});
-    for (std::int32_t s : get_int_dataset(file, "/alpha/status", {bins}))
-      m.status.push_back(BinStatus(s));
-    if (file.nameExists("/alpha/tilt"))
-      m.alpha_tilt = get_dataset(file, "/alpha/tilt", {bins});
-    if (file.nameExists("/alpha/turn"))
-      m.alpha_turn = get_dataset(file, "/alpha/turn", {bins});
-    if (file.nameExists("/alpha/blend"))
-      for (std::int32_t h : get_int_dataset(file, "/alpha/blend", {bins}))
-        m.alpha_blend_width.push_back(h);
-    if (m.kind == ModelKind::kVmf) {
-      m.lobes = get_int(file.openGroup("/vmf"), "lobes");
-      if (m.lobes < 1 || m.lobes > 64) throw std::runtime_error("vMF lobe count out of range");
-      const hsize_t k = hsize_t(m.lobes);
-      std::vector<double> w = get_dataset(file, "/vmf/weight", {bins, k});
-      std::vector<double> kappa = get_dataset(file, "/vmf/kappa", {bins, k});
-      std::vector<double> mean = get_dataset(file, "/vmf/mean", {bins, k, 3});
-      for (std::size_t i = 0; i < w.size(); ++i)
-        m.vmf.push_back({w[i], kappa[i], {mean[3 * i], mean[3 * i + 1], mean[3 * i + 2]}});
-    } else {
-      H5::Group g = file.openGroup("/sh");
-      m.band_limit = get_int(g, "band_limit");
-      m.sh_nz = get_int(g, "table_nz");
-      if (m.band_limit < 0 || m.band_limit > 64 || m.sh_nz < 1 || m.sh_nz > 4096)
-        throw std::runtime_error("SH band limit or table size out of range");
-      m.sh = get_dataset(file, "/sh/coefficients", {bins, hsize_t(sh_count(m.band_limit))});
-      m.alpha_degree = get_int(g, "alpha_degree");
-      if (m.alpha_degree >= 0)
-        m.sh_chebyshev = get_dataset(
-            file, "/sh/chebyshev", {hsize_t(m.alpha_degree + 1), hsize_t(sh_count(m.band_limit))});
-      m.rebuild_sh_tables();
-    }
+    StfModel m = get_header(file);
+    get_alpha(file, m);
+    get_directions(file, m);
     if (std::string why = model_error(m); !why.empty()) throw std::runtime_error(why);
     m.rebuild_lobe_norms();
     return m;
