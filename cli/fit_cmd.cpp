@@ -38,8 +38,6 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
     << ", \"window\": \"" << (r.lanczos_window ? "lanczos" : "none") << "\""
     << ", \"alpha_penalty\": " << r.alpha_penalty << ", \"singular_parts\": \"" << r.singular_parts << "\", \"heldout_halves\": \"" << r.heldout_halves << "\""
     << ", \"family\": \"" << (m.kind == ModelKind::kSh ? "sh" : m.hemispherical ? "hvmf" : "vmf") << "\"";
-  if (r.family_heldout_nll.size() == 2)
-    s << ", \"family_heldout_nll\": {\"vmf\": " << r.family_heldout_nll[0] << ", \"sh\": " << r.family_heldout_nll[1] << "}";
   if (!r.blend_heldout_nll.empty()) {
     s << ", \"alpha_blend\": " << m.alpha_blend << ", \"blend_heldout_nll\": [";
     for (std::size_t i = 0; i < r.blend_heldout_nll.size(); ++i) s << (i ? ", " : "") << r.blend_heldout_nll[i];
@@ -82,7 +80,6 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
 fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, const fit::FitSettings& settings,
                                    fit::Provenance& provenance) {
   if (o.heldout.empty()) fail("--tolerance needs --heldout: an independent table of the same medium (another --seed)");
-  if (settings.any_family) fail("--tolerance needs one model family: --model vmf:K, vmf:auto, hvmf:K, hvmf:auto, sh:L or sh:auto");
   if (o.alpha_degree >= 0) fail("--alpha-degree and --tolerance cannot be combined");
   const double tolerance = o.tolerance;
   Table heldout = read_table(o.heldout);
@@ -111,10 +108,7 @@ fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, cons
   return r;
 }
 
-void run_fit(FitOptions o, const CLI::App& cmd) {
-  // The tolerance search refines one family; without --model it refines the lobes auto keeps
-  // on most media.
-  if (cmd.count("--tolerance") && !cmd.count("--model")) o.model = "hvmf:auto";
+void run_fit(const FitOptions& o, const CLI::App& cmd) {
   fit::FitSettings settings;
   try {
     settings = fit::parse_model_spec(o.model);
@@ -238,7 +232,7 @@ void add_fit_command(CLI::App& app) {
   auto o = std::make_shared<FitOptions>();
   CLI::App* cmd = app.add_subcommand("fit", "Fit a raw table with vMF lobes or smoothed spherical harmonics");
   cmd->add_option("table", o->table, "Raw table (HDF5)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--model", o->model, "auto, vmf:K, vmf:auto, hvmf:K, hvmf:auto, sh:L or sh:auto (default auto: what scenes and render use)");
+  cmd->add_option("--model", o->model, "auto (what scenes and render use: hvmf:auto), vmf:K, vmf:auto, hvmf:K, hvmf:auto, sh:L or sh:auto (default auto)");
   cmd->add_option("-o,--output", o->output, "Output model (HDF5)")->required();
   cmd->add_option("--report", o->report, "Per-bin diagnostics and model selection as JSON");
   cmd->add_option("--pack", o->pack, "Also write the model as a binary pack for the sampler");
@@ -251,8 +245,7 @@ void add_fit_command(CLI::App& app) {
                   "tilt, turn, blend, blend-by-bin); for measuring what each is worth (docs/fit.md, \"Ablation\")")
       ->group("Developer");
   cmd->add_option("--tolerance", o->tolerance,
-                  "Target TV distance: fewest alpha bins, coarsest grid and smallest size that are certified within it "
-                  "(one family: without --model, hvmf:auto)");
+                  "Target TV distance: fewest alpha bins, coarsest grid and smallest size that are certified within it");
   cmd->add_option("--heldout", o->heldout, "With --tolerance: an independent table (other seed) that certifies the fit")
       ->check(CLI::ExistingFile);
   cmd->add_flag("--quiet", o->quiet, "No summary line");

@@ -11,42 +11,9 @@ namespace stf::fit {
 
 using namespace stages;
 
-namespace {
-
-// --model auto: hemispherical lobes (hvmf) and SH at their held-out sizes, scored on the same
-// held-out half; the one with the lower held-out negative log-likelihood is kept (with its
-// report).
-StfModel fit_any_family(const Table& t, const FitSettings& s, FitReport& r) {
-  FitSettings one = s;
-  one.any_family = false;
-  FitReport reports[2];
-  StfModel models[2];
-  double nll[2];
-  for (int i = 0; i < 2; ++i) {
-    one.kind = i == 0 ? ModelKind::kVmf : ModelKind::kSh;
-    one.hemispherical = i == 0;  // the lobes in the form that respects the outward hemisphere
-    models[i] = fit_table(t, one, &reports[i]);
-    if (cancelled(s)) return {};
-    const FitReport& ri = reports[i];
-    auto chosen = std::find(ri.candidates.begin(), ri.candidates.end(), ri.chosen_size) - ri.candidates.begin();
-    nll[i] = ri.heldout_nll[std::size_t(chosen)];
-  }
-  const int best = nll[1] < nll[0] ? 1 : 0;
-  r = reports[best];
-  r.fit_time_s = reports[0].fit_time_s + reports[1].fit_time_s;
-  r.family_heldout_nll = {nll[0], nll[1]};
-  return models[best];
-}
-
-}  // namespace
-
 StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   if (std::string why = settings_error(t, s); !why.empty()) throw std::invalid_argument(why);
   if (wants_expected_singular_parts(t)) return fit_table(with_expected_singular_parts(t), s, report);
-  if (s.any_family) {
-    FitReport local;
-    return fit_any_family(t, s, report ? *report : local);
-  }
   auto start = std::chrono::steady_clock::now();
   FitReport local;
   FitReport& r = report ? *report : local;

@@ -15,7 +15,6 @@ struct FitSettings {
   ModelKind kind = ModelKind::kVmf;
   int size = 4;            // lobes (vmf) or band limit (sh)
   bool automatic = false;  // vmf:auto / sh:auto: size chosen by held-out error
-  bool any_family = false; // auto: hvmf and sh, each at its held-out size; the lower held-out NLL wins
   bool hemispherical = false;  // hvmf: vMF lobes times each bin's outward cosine (stf/hemisphere.h)
   int threads = 0;         // 0: all cores; results do not depend on it
   int min_escapes = 10;    // bins with fewer escapes borrow their neighbour's model
@@ -47,9 +46,9 @@ struct FitSettings {
   const std::atomic<bool>* cancel = nullptr;
 };
 
-// Parses "auto", "vmf:K", "vmf:auto", "hvmf:K", "hvmf:auto", "sh:L", "sh:auto" (1 <= K <= 16,
-// 0 <= L <= 32). Throws
-// std::invalid_argument naming --model and what is allowed.
+// Parses "auto" (what the project recommends: hvmf:auto), "vmf:K", "vmf:auto", "hvmf:K",
+// "hvmf:auto", "sh:L", "sh:auto" (1 <= K <= 16, 0 <= L <= 32). Throws std::invalid_argument
+// naming --model and what is allowed.
 FitSettings parse_model_spec(const std::string& spec);
 
 // The mechanisms the fit can be run without, by name (stf fit --ablate, for bench/ablation.py):
@@ -125,7 +124,6 @@ struct FitReport {
   std::vector<double> heldout_nll;       // auto: held-out negative log-likelihood per size
   std::vector<double> heldout_nll_error; // auto: its standard error against the best
   int chosen_size = 0;
-  std::vector<double> family_heldout_nll;  // auto: held-out NLL of the vmf and the sh model
   // auto: held-out NLL of the chosen size per blend width 0 .. kMaxBlend (StfModel::alpha_blend)
   std::vector<double> blend_heldout_nll;
   std::vector<double> blend_heldout_nll_error;  // and its standard error against width 0's

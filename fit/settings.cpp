@@ -9,11 +9,7 @@ namespace stf::fit {
 FitSettings parse_model_spec(const std::string& spec) {
   const std::string allowed =
       "--model must be auto, vmf:K or hvmf:K (1..16), vmf:auto, hvmf:auto, sh:L (0..32) or sh:auto, got '" + spec + "'";
-  if (spec == "auto") {
-    FitSettings s;
-    s.automatic = s.any_family = true;
-    return s;
-  }
+  if (spec == "auto") return parse_model_spec("hvmf:auto");
   auto colon = spec.find(':');
   if (colon == std::string::npos) throw std::invalid_argument(allowed);
   std::string kind = spec.substr(0, colon), size = spec.substr(colon + 1);

@@ -200,8 +200,8 @@ TEST_F(Cli, FitReportsNeighbourPoolingAndAblatingItTurnsItOff) {
   EXPECT_EQ(alone.find("\"pool_heldout_nll\""), std::string::npos) << alone.substr(0, 600);
 }
 
-// Without --model, stf fit fits what scenes and render use: auto, both families scored on the
-// held-out half (the report names the family kept and gives both scores).
+// Without --model, stf fit fits what scenes and render use: auto, hemispherical lobes at their
+// held-out size.
 TEST_F(Cli, FitWithoutModelFitsAuto) {
   ASSERT_EQ(stf("precompute --sigma-s 4.275 --sigma-a 0.225 --g 0.5 --alpha-bins 9 --grid healpix:4 --quiet "
                 "--paths 20000 -o " + out("t.h5")).status, 0);
@@ -210,7 +210,8 @@ TEST_F(Cli, FitWithoutModelFitsAuto) {
   std::ifstream json(out("r.json"));
   const std::string report((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
   EXPECT_NE(report.find("\"model\": \"auto\""), std::string::npos) << report.substr(0, 300);
-  EXPECT_NE(report.find("\"family_heldout_nll\""), std::string::npos) << report.substr(0, 300);
+  EXPECT_NE(report.find("\"family\": \"hvmf\""), std::string::npos) << report.substr(0, 300);
+  EXPECT_NE(report.find("\"candidates\""), std::string::npos) << report.substr(0, 300);
 }
 
 // --tolerance: a certified model with fewer or equal alpha bins, evaluable against the

@@ -239,21 +239,13 @@ TEST(FitTable, SmoothedHeadingsKeepTheTrendAndQuietTheNoise) {
   EXPECT_LT(smoothed, 0.5 * raw) << smoothed / raw;
 }
 
-// --model auto: hvmf and sh each at its held-out size; the family with the lower held-out NLL.
-TEST(FitTable, AutoPicksTheFamilyWithTheLowerHeldOutError) {
-  EXPECT_TRUE(parse_model_spec("auto").any_family);
+// --model auto is what the project recommends: hemispherical lobes at their held-out size.
+TEST(FitTable, AutoIsHemisphericalLobesAtTheirHeldOutSize) {
+  const FitSettings a = parse_model_spec("auto"), h = parse_model_spec("hvmf:auto");
+  EXPECT_TRUE(a.automatic && a.hemispherical && a.kind == ModelKind::kVmf);
+  EXPECT_EQ(a.automatic, h.automatic);
+  EXPECT_EQ(a.hemispherical, h.hemispherical);
   EXPECT_THROW(parse_model_spec("auto:3"), std::invalid_argument);
-  for (Medium m : {Medium{4, 0.5, 0.3, 1}, Medium{0.8, 0.2, 0.9, 1}}) {
-    Table t = make_table(m, 40000, "healpix:4", 9);
-    FitReport r;
-    StfModel model = fit_table(t, parse_model_spec("auto"), &r);
-    ASSERT_EQ(r.family_heldout_nll.size(), 2u);
-    EXPECT_EQ(model.kind, r.family_heldout_nll[1] < r.family_heldout_nll[0] ? ModelKind::kSh : ModelKind::kVmf);
-    EXPECT_EQ(model.hemispherical, model.kind == ModelKind::kVmf);
-    FitReport alone;
-    fit_table(t, parse_model_spec(model.kind == ModelKind::kVmf ? "hvmf:auto" : "sh:auto"), &alone);
-    EXPECT_EQ(r.chosen_size, alone.chosen_size);
-  }
 }
 
 // The once-scattered escapes are an exact part too: their probability is the one-collision
