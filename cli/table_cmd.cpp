@@ -141,7 +141,8 @@ void add_smooth_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("smooth", "A table into its fitted model's expected weights, in the table's layout");
   cmd->add_option("table", o->table, "Table (HDF5): stf's, or any file with the four datasets")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", o->output, "Smoothed table (HDF5)")->required();
-  cmd->add_option("--model", o->model, "auto, vmf:K, vmf:auto, hvmf:K, hvmf:auto, sh:L or sh:auto")->capture_default_str();
+  cmd->add_option("--model", o->model, "auto (hvmf:auto), vmf:K, vmf:auto, hvmf:K, hvmf:auto, sh:L or sh:auto")
+      ->capture_default_str();
   cmd->add_option("--threads", o->threads, "Worker threads (0: all cores)")->capture_default_str();
   cmd->add_flag("--quiet", o->quiet, "No summary line");
   cmd->callback([o] { run_smooth(*o); });
