@@ -24,7 +24,7 @@ struct Neighbourhood {
 
 // Each bin's outward factors for hemispherical lobes. A pooled bin reads its neighbours' too
 // (up to 8 of them): each bin's are computed once for the pass where they fit in
-// kOutwardCacheBytes (they were 7% of a pooled fit's time), else again for every bin that reads
+// kConfig.outward_cache_bytes (they were 7% of a pooled fit's time), else again for every bin that reads
 // them.
 class OutwardSource {
  public:
@@ -33,7 +33,7 @@ class OutwardSource {
     double points = 0;  // per bin: a factor at every point of every level
     for (int level = 0; level <= QuadratureLevels::kMaxLevel; ++level) points += double(levels.at(level).point.size());
     const double cache_bytes = double(t.alpha_bins) * points * sizeof(double);
-    if (!s.hemispherical || s.kind != ModelKind::kVmf || !pooled || cache_bytes > kOutwardCacheBytes) return;
+    if (!s.hemispherical || s.kind != ModelKind::kVmf || !pooled || cache_bytes > kConfig.outward_cache_bytes) return;
     cache_.resize(std::size_t(t.alpha_bins));
     for_each_bin(t.alpha_bins, s, [&](int b) { cache_[std::size_t(b)] = compute(b); });
   }
@@ -100,7 +100,7 @@ std::vector<VmfLobe> fit_lobes(const std::vector<double>& counts, const Pass& pa
   if (warm && pass.half < 0) refine.function_tolerance = 1e-4;
   // Trial pools only rank the pools of each bin (wide_pooling); the final fit starts from the
   // winner and runs to convergence.
-  if (width > 0 && pass.pool->trial) refine.max_iterations = kPoolTryIterations;
+  if (width > 0 && pass.pool->trial) refine.max_iterations = kConfig.pool_try_iterations;
   VmfFitResult fit = warm ? fit_vmf_from(counts, levels, grow_lobes(pass.start->lobes[std::size_t(b)], lobes), refine)
                           : fit_vmf(counts, levels, lobes, options);
   // A fit pooled with the nearest neighbours alone also starts afresh on the full table and
@@ -153,7 +153,7 @@ BinFits fit_bins(const Escapes& e, const Pass& pass, const QuadratureLevels& lev
     std::vector<OutwardFactors> near;
     const double weighted = add_pool(context, b, escapes, options, near);
     // No more lobes than the escapes can support.
-    const int lobes = std::clamp(int(weighted / kEscapesPerLobe), 1, pass.size);
+    const int lobes = std::clamp(int(weighted / kConfig.escapes_per_lobe), 1, pass.size);
     fits.lobes[b] = fit_lobes(counts, pass, b, lobes, levels, options);
     fits.lobes[b].resize(pass.size, VmfLobe{0, 0, {0, 0, 1}});
   });

@@ -30,8 +30,8 @@ std::vector<int> widths_by_bin(const std::vector<HeldOut>& blended) {
     double best = 0;
     for (std::size_t w = 1; w < blended.size(); ++w) {
       double gain = 0;
-      for (int j = std::max(0, b - kBlendReach); j <= std::min(bins - 1, b + kBlendReach); ++j)
-        gain += (1 - double(std::abs(j - b)) / (kBlendReach + 1)) *
+      for (int j = std::max(0, b - kConfig.blend_reach); j <= std::min(bins - 1, b + kConfig.blend_reach); ++j)
+        gain += (1 - double(std::abs(j - b)) / (kConfig.blend_reach + 1)) *
                 (blended[0].bin_nll[std::size_t(j)] - blended[w].bin_nll[std::size_t(j)]);
       if (gain > best) best = gain, widths[std::size_t(b)] = int(w);
     }
@@ -72,13 +72,13 @@ BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, const FitSetting
     c.error.push_back(difference_error(e, 1, blended.back(), flat));
   }
   for (int w = 1; w <= max_width; ++w)
-    if (c.nll[std::size_t(w)] < c.nll[std::size_t(c.width)] && c.nll[0] - c.nll[std::size_t(w)] > kBlendStandardErrors * c.error[std::size_t(w)])
+    if (c.nll[std::size_t(w)] < c.nll[std::size_t(c.width)] && c.nll[0] - c.nll[std::size_t(w)] > kConfig.blend_standard_errors * c.error[std::size_t(w)])
       c.width = w;
   const std::vector<int> one(std::size_t(t.alpha_bins), c.width), by_bin = widths_by_bin(blended);
   const HeldOut at_one = scores_at_widths(blended, one), at_by_bin = scores_at_widths(blended, by_bin);
   c.by_bin_gain = at_one.nll - at_by_bin.nll;
   c.by_bin_error = difference_error(e, 1, at_by_bin, at_one);
-  const bool keep_by_bin = s.blend_by_bin && c.by_bin_gain > kBlendStandardErrors * c.by_bin_error;
+  const bool keep_by_bin = s.blend_by_bin && c.by_bin_gain > kConfig.blend_standard_errors * c.by_bin_error;
   const std::vector<int>& widths = keep_by_bin ? by_bin : one;
   if (std::any_of(widths.begin(), widths.end(), [](int h) { return h > 0; })) c.widths = widths;
   return c;

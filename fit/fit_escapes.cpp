@@ -86,14 +86,14 @@ RestProbabilities rest_probabilities(const Table& t, const SingularParts& exact)
   return r;
 }
 
-bool worth_pooling(const Escapes& e, int b) { return e.total[std::size_t(b)] < kPoolBelowEscapes; }
+bool worth_pooling(const Escapes& e, int b) { return e.total[std::size_t(b)] < kConfig.pool_below_escapes; }
 
 bool capped_by_escapes(const Escapes& e, int b, int size) {
-  return e.total[std::size_t(b)] < 2 * kEscapesPerLobe * size;
+  return e.total[std::size_t(b)] < 2 * kConfig.escapes_per_lobe * size;
 }
 
 bool noisy(const Escapes& e, int b, int size) {
-  return worth_pooling(e, b) && e.total[std::size_t(b)] < kSlopedPoolEscapesPerLobe * size;
+  return worth_pooling(e, b) && e.total[std::size_t(b)] < kConfig.sloped_pool_escapes_per_lobe * size;
 }
 
 std::vector<double> uniform_alpha(const std::vector<double>& edges) {

@@ -55,7 +55,7 @@ std::vector<PoolTry> choose_pooling(const Escapes& e, const FitSettings& s, cons
       fits = std::move(pooled.fits), score = std::move(pooled.score);
     }
   }
-  r.neighbour_weight = chosen == alone ? 0 : kNeighbourWeight;
+  r.neighbour_weight = chosen == alone ? 0 : kConfig.neighbour_weight;
   return chosen;
 }
 
@@ -65,7 +65,7 @@ std::vector<double> pooled_gain(const Pooling& pool, const HeldOut& before, cons
   for (int b = 0; b < bins; ++b)
     for (int j = std::max(0, b - 1); j <= std::min(bins - 1, b + 1); ++j)
       if (pool.bin[std::size_t(j)].width > 0)
-        gain[std::size_t(b)] += (j == b ? 1.0 : kNeighbourGainWeight) *
+        gain[std::size_t(b)] += (j == b ? 1.0 : kConfig.neighbour_gain_weight) *
                                 (before.bin_nll[std::size_t(j)] - pooled.bin_nll[std::size_t(j)]);
   return gain;
 }
@@ -75,7 +75,7 @@ void wide_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& g
   const int bins = e.table.alpha_bins, size = c.size;
   BinFits& fits = c.fits;
   HeldOut& score = c.score;
-  for (const PoolTry& tried : kPoolTries) {
+  for (const PoolTry& tried : kConfig.pool_tries) {
     Pooling pool{std::vector<PoolTry>(std::size_t(bins)), &fits, true};
     for (int b = 0; b < bins; ++b)
       if ((tried.sloped ? noisy(e, b, size) : capped_by_escapes(e, b, size)) && pools[std::size_t(b)] != tried)

@@ -164,19 +164,19 @@ struct BinFits {
 // model while its fits took four times as long.
 bool worth_pooling(const Escapes& e, int b);
 
-// Whether a half-table holds too few of bin b's escapes for `size` lobes (kEscapesPerLobe each):
+// Whether a half-table holds too few of bin b's escapes for `size` lobes (kConfig.escapes_per_lobe each):
 // the bin's own escapes, not the family, limit its model whatever its size, so its neighbours'
 // are worth reaching farther for (wide_pooling).
 bool capped_by_escapes(const Escapes& e, int b, int size);
 
 // Whether bin b is noisy enough for a sloped pool (PoolTry) to be worth its cost: fewer than
-// kSlopedPoolEscapesPerLobe escapes per lobe of the chosen size.
+// kConfig.sloped_pool_escapes_per_lobe escapes per lobe of the chosen size.
 bool noisy(const Escapes& e, int b, int size);
 
 // Which bins a pass of fit_bins pools, and how (PoolTry): bin b with the bins within its width
 // on either side (0: alone). Bins of width 0 copy their lobes from `others` when given (fitted
 // alone or chosen before, at the same size on the same half). A `trial` pass only ranks pools
-// for wide_pooling: its pooled fits stop after kPoolTryIterations.
+// for wide_pooling: its pooled fits stop after kConfig.pool_try_iterations.
 struct Pooling {
   std::vector<PoolTry> bin;
   const BinFits* others = nullptr;
@@ -192,7 +192,7 @@ struct Pooling {
 // pool_weight(w, d), to those of the bins d <= w away, expected where the bin's go turned about
 // y by the difference of their headings (the forward peak turns with the exit point:
 // docs/fit.md, "The pipeline"), and continued linearly in alpha where the pool is sloped; it
-// gets a lobe per kEscapesPerLobe of all the escapes so weighted.
+// gets a lobe per kConfig.escapes_per_lobe of all the escapes so weighted.
 struct Pass {
   int half = -1;
   int size = 0;                            // lobes or band limit
@@ -278,16 +278,12 @@ std::vector<PoolTry> choose_pooling(const Escapes& e, const FitSettings& s, cons
                                     const QuadratureLevels& levels, SizeChoice& choice, FitReport& r);
 
 // What a pass of pools gains in each bin it tries: the held-out NLL the pooled fits save against
-// the choice so far, in the bin and, weighted kNeighbourGainWeight, in its two neighbours where
-// they tried the same pool. A bin's own gain is one noisy score of a few hundred escapes, and
-// the best of such scores fits the held-out half; neighbouring bins differ little, so their
-// gains say something of this bin's (tau 1 g 0.9 at 1e5 paths, five seeds: mean 0.0124 against
-// 0.0127 on the bin's own gain alone; neighbours within 2 at 1/4 further: no change).
-constexpr double kNeighbourGainWeight = 0.5;
+// the choice so far, in the bin and, weighted kConfig.neighbour_gain_weight, in its two
+// neighbours where they tried the same pool.
 
 std::vector<double> pooled_gain(const Pooling& pool, const HeldOut& before, const HeldOut& pooled);
 
-// Wider pools (kPoolTries), fitted on half 0 in the bins they are tried in: sloped ones in the
+// Wider pools (kConfig.pool_tries), fitted on half 0 in the bins they are tried in: sloped ones in the
 // noisy bins, where the lobes change their shape from bin to bin faster than the noise hides;
 // flat ones where the half-table escapes cannot carry the chosen size (capped_by_escapes),
 // whatever the family, and the exit distribution changes slowly with alpha. Each bin keeps a
@@ -301,12 +297,8 @@ void wide_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& g
 // bin's density blended as a model of each width 0 .. max_width blends it (tilts from half 0),
 // and the width chosen; in turning models (`turned`) each neighbour's density as the sampler
 // turns it into the bin. Blending adds no parameter, but a width is kept only where its held-out
-// gain over none exceeds kBlendStandardErrors standard errors: in models whose bins stood still,
-// the forward peak near the axis turns with alpha and a mixture of neighbours broadens it, which
-// the held-out NLL, summed over all bins, could miss by a nat or two while TV grew (tau 1 g 0.9
-// at 1e5 paths, seed 4: blend 1 ahead by 1.1 standard errors, TV 0.0165 with it, 0.0133
-// without). Among the widths so kept the lowest NLL wins.
-constexpr double kBlendStandardErrors = 2;
+// gain over none exceeds kConfig.blend_standard_errors standard errors. Among the widths so kept
+// the lowest NLL wins.
 
 // Each bin's half-table lobes (standing still) as a turning model blends them into the bins
 // within `width` of it: bin j in bin b turned by bin j's rate from j's middle to b's (the middle
@@ -332,11 +324,9 @@ struct BlendChoice {
 };
 
 // Widths by bin: each bin takes the width whose held-out gain over none, summed over the bins
-// within kBlendReach at hat weights 1 - |j - b| / (kBlendReach + 1), is largest (none where no
-// width gains). A bin's own gain is the score of a few hundred escapes; its neighbours' say
-// what a bin's cannot (tau 1 g 0.9 at 1e5 paths, five seeds: mean 0.0110 at reach 3, 0.0109 at
-// reach 1 but 1-3% farther than one width on media where the widest suits every bin).
-constexpr int kBlendReach = 3;
+// within kConfig.blend_reach at hat weights 1 - |j - b| / (reach + 1), is largest (none where no
+// width gains): a bin's own gain is the score of a few hundred escapes, its neighbours' say what
+// a bin's cannot.
 
 std::vector<int> widths_by_bin(const std::vector<HeldOut>& blended);
 
@@ -344,7 +334,7 @@ std::vector<int> widths_by_bin(const std::vector<HeldOut>& blended);
 HeldOut scores_at_widths(const std::vector<HeldOut>& blended, const std::vector<int>& widths);
 
 // One width (0 .. s.max_blend) for every bin, and widths by bin where they gain over it by more
-// than kBlendStandardErrors standard errors (the widths are chosen on the half that scores them,
+// than kConfig.blend_standard_errors standard errors (the widths are chosen on the half that scores them,
 // so a small gain is their selection's; never without s.blend_by_bin). Near the axis of a
 // forward medium the density changes its shape from bin to bin and wants a narrow blend, far
 // from it the bins are noisy and want the widest; where the widest suits every bin the gain

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "config.h"
 #include "stf/model.h"
 #include "table.h"
 
@@ -21,7 +22,7 @@ struct FitSettings {
   int alpha_degree = -1;   // sh: >= 0 replaces the bins' coefficients by a Chebyshev series in cos(alpha)
   int max_blend = StfModel::kMaxBlend;  // auto: the widest alpha blend tried (StfModel::alpha_blend)
   // vmf/hvmf auto: whether fitting each bin together with its neighbours' escapes, turned to
-  // its heading (kNeighbourWeight), is tried on held-out data.
+  // its heading (kConfig.neighbour_weight), is tried on held-out data.
   bool pool_neighbours = true;
   // Whether the escapes are folded over their mirror symmetry as they are fitted
   // (fold_over_mirror).
@@ -60,49 +61,25 @@ inline constexpr const char* kAblations[] = {"mirror", "pooling", "wide-pools", 
 // std::invalid_argument naming --ablate and what is allowed.
 void ablate(FitSettings& settings, const std::string& list);
 
-// The weight of each of a bin's two neighbours in a pooled fit (FitSettings::pool_neighbours),
-// and the escapes (after two or more collisions, both halves) below which a bin is pooled.
-inline constexpr double kNeighbourWeight = 0.5;
-inline constexpr double kPoolBelowEscapes = 4e4;
-// A bin's lobes in a fit: at most one per this many escapes it is fitted to.
-inline constexpr double kEscapesPerLobe = 50;
-// How a bin's lobes are fitted to its neighbours' escapes: alone (width 0), or with the bins
-// within `width` on either side, bin b +- d weighted pool_weight(width, d), and where `sloped`
-// with the lobes continued linearly in alpha (VmfFitOptions::sloped).
-struct PoolTry {
-  int width = 0;
-  bool sloped = false;
-  bool operator==(const PoolTry&) const = default;
-};
-// A triangle in the distance d (bins): the nearest neighbours of width 1 count kNeighbourWeight.
+// A triangle in the distance d (bins): the nearest neighbours of width 1 count
+// kConfig.neighbour_weight.
 inline constexpr double pool_weight(int width, int d) { return 1 - d / double(width + 1); }
-// The pools tried bin by bin after the size (docs/fit.md, "The pipeline"): sloped in noisy
-// bins (fewer than kSlopedPoolEscapesPerLobe escapes per lobe), flat and wide in bins whose
-// half-table escapes cannot carry the size.
-inline constexpr PoolTry kPoolTries[] = {{3, true}, {4, false}};
-inline constexpr int kPoolTryIterations = 15;
-inline constexpr double kSlopedPoolEscapesPerLobe = 400;
-// The most memory a pass of pooled fits keeps every bin's outward factors in (healpix:16 x 45
-// bins: 23 MB; healpix:64 x 45 would take 370 MB and computes them per use instead).
-inline constexpr double kOutwardCacheBytes = 256e6;
 
 // The bins' headings (mean exit directions' angles about y, per alpha bin) smoothed across
 // alpha for sloped pools: a sparse bin's heading scatters by degrees (a few hundred escapes
 // spread over tens of degrees), the true one turns smoothly with the exit point. Each becomes
 // the value at its bin of a local quadratic in the bin index over the bins within
-// kHeadingWindow, least squares weighted by their escapes and a triangle in the distance;
+// kConfig.heading_window, least squares weighted by their escapes and a triangle in the distance;
 // headings are unwrapped first, as they may cross +-pi. Bins whose window holds fewer than three
 // bins with escapes keep their own. `slopes`, when given, receives each local quadratic's slope at
 // its bin, per bin (0 where a bin keeps its own heading).
-inline constexpr int kHeadingWindow = 5;
 std::vector<double> smooth_headings(std::vector<double> headings, const std::vector<double>& escapes,
                                     std::vector<double>* slopes = nullptr);
 
 // The rate at which each bin's direction density turns about y with the exit angle
 // (StfModel::alpha_turn), in radians per radian of alpha: the slope at the bin of its smoothed
 // heading (smooth_headings of the bins' headings and escapes after two or more collisions),
-// clamped to [-kMaxFittedTurn, kMaxFittedTurn]; 0 where the slope is not known.
-inline constexpr double kMaxFittedTurn = 4;
+// clamped to +-kConfig.max_fitted_turn; 0 where the slope is not known.
 std::vector<double> alpha_turns(const std::vector<double>& headings, const std::vector<double>& escapes,
                                 const std::vector<double>& alpha_edges);
 

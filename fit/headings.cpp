@@ -23,8 +23,8 @@ std::vector<double> smooth_headings(std::vector<double> headings, const std::vec
   for (int b = 0; b < bins; ++b) {
     Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
     Eigen::Vector3d right = Eigen::Vector3d::Zero();
-    for (int j = std::max(0, b - kHeadingWindow); j <= std::min(bins - 1, b + kHeadingWindow); ++j) {
-      const double d = j - b, w = escapes[std::size_t(j)] * (1 - std::abs(d) / (kHeadingWindow + 1));
+    for (int j = std::max(0, b - kConfig.heading_window); j <= std::min(bins - 1, b + kConfig.heading_window); ++j) {
+      const double d = j - b, w = escapes[std::size_t(j)] * (1 - std::abs(d) / (kConfig.heading_window + 1));
       const Eigen::Vector3d x(1, d, d * d);
       normal += w * x * x.transpose(), right += w * x * h[std::size_t(j)];
     }
@@ -43,7 +43,7 @@ std::vector<double> alpha_turns(const std::vector<double>& headings, const std::
   smooth_headings(headings, escapes, &slopes);
   std::vector<double> turn(headings.size());
   for (std::size_t b = 0; b < turn.size(); ++b)
-    turn[b] = std::clamp(slopes[b] / (alpha_edges[b + 1] - alpha_edges[b]), -kMaxFittedTurn, kMaxFittedTurn);
+    turn[b] = std::clamp(slopes[b] / (alpha_edges[b + 1] - alpha_edges[b]), -kConfig.max_fitted_turn, kConfig.max_fitted_turn);
   return turn;
 }
 
