@@ -109,7 +109,7 @@ TEST_F(Scale, MergeRefusesDuplicatesGapsAndForeignParts) {
 
 TEST_F(Scale, AKilledRunResumesToTheSameTable) {
   const std::string run = "precompute --sigma-s 30 --sigma-a 0 --g 0 --alpha-bins 18 --grid healpix:4 --quiet "
-                          "--paths 1e7 --threads 2 ";
+                          "--paths 3e6 --threads 2 ";
   ASSERT_EQ(stf(run + "-o " + out("full.h5")).status, 0);
   // Checkpoints every 0.1 s; SIGKILL (no handler runs) part-way.
   pid_t pid = ::fork();
