@@ -111,8 +111,6 @@ Settings read_settings(const toml::value& t) {
     s.tolerance = number(t.at("tolerance"), "settings.tolerance");
     expect(s.tolerance > 0 && s.tolerance < 1, t.at("tolerance"), "settings.tolerance: must be a TV distance in (0, 1)");
   }
-  if (s.tolerance > 0 && s.model == "auto")
-    error_at(t.at("model"), "settings.model: a tolerance needs one model family (vmf:K, vmf:auto, hvmf:K, hvmf:auto, sh:L or sh:auto)");
   if (t.contains("tau_ratio")) {
     s.tau_ratio = number(t.at("tau_ratio"), "settings.tau_ratio");
     expect(s.tau_ratio > 1.01 && s.tau_ratio <= 100, t.at("tau_ratio"), "settings.tau_ratio: must be in (1.01, 100]");
