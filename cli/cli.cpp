@@ -1,5 +1,7 @@
 #include "cli.h"
 
+#include <CLI/CLI.hpp>
+
 #include <fcntl.h>
 #include <limits.h>
 #include <sys/file.h>
@@ -17,6 +19,7 @@
 #include <toml.hpp>
 
 #include "files.h"
+#include "table.h"
 
 namespace stf::cli {
 
@@ -343,6 +346,15 @@ void AtomicOutput::put_in_place() {
     sync_folder_of(target_);
   }
   committed_ = true;
+}
+
+void add_medium_options(CLI::App& cmd, Medium& medium, bool required) {
+  CLI::Option* options[] = {
+      cmd.add_option("--sigma-s", medium.sigma_s, "Scattering coefficient (>= 0)"),
+      cmd.add_option("--sigma-a", medium.sigma_a, "Absorption coefficient (>= 0)"),
+      cmd.add_option("--g", medium.g, "Henyey-Greenstein asymmetry, in (-1, 1)")};
+  for (CLI::Option* o : options) o->required(required);
+  cmd.add_option("--radius", medium.radius, "Sphere radius (> 0)")->capture_default_str();
 }
 
 }  // namespace stf::cli

@@ -15,6 +15,10 @@ namespace CLI {
 class App;
 }
 
+namespace stf {
+struct Medium;
+}
+
 namespace stf::cli {
 
 // A user error. main() prints it as one line, "stf: error: <message>", and exits with status 2;
@@ -174,6 +178,9 @@ class ProgressBar {
   bool enabled_;
   bool drawn_ = false;
 };
+
+// --sigma-s, --sigma-a, --g (required when `required`) and --radius, into `medium`.
+void add_medium_options(CLI::App& cmd, Medium& medium, bool required);
 
 void add_precompute_command(CLI::App& app);
 void add_merge_command(CLI::App& app);

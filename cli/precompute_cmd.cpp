@@ -221,10 +221,7 @@ void add_precompute_command(CLI::App& app) {
   auto o = std::make_shared<PrecomputeOptions>();
   CLI::App* cmd = app.add_subcommand(
       "precompute", "Walk paths from the centre of a sphere of medium; write the raw table (HDF5)");
-  cmd->add_option("--sigma-s", o->medium.sigma_s, "Scattering coefficient (>= 0)")->required();
-  cmd->add_option("--sigma-a", o->medium.sigma_a, "Absorption coefficient (>= 0)")->required();
-  cmd->add_option("--g", o->medium.g, "Henyey-Greenstein asymmetry, in (-1, 1)")->required();
-  cmd->add_option("--radius", o->medium.radius, "Sphere radius (> 0)")->capture_default_str();
+  add_medium_options(*cmd, o->medium, true);
   cmd->add_option("--alpha-bins", o->alpha_bins, "Bins of the exit-point angle alpha on [0, pi]")
       ->capture_default_str();
   cmd->add_option("--grid", o->settings.grid, "Direction cells: csc:N (COBE sky cube) or healpix:NSIDE")

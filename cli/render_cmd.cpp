@@ -209,10 +209,7 @@ void add_render_command(CLI::App& app) {
   auto o = std::make_shared<RenderOptions>();
   CLI::App* cmd = app.add_subcommand(
       "render", "Render a sphere of medium under sky and sun, by brute force or through precomputed spheres");
-  cmd->add_option("--sigma-s", o->medium.sigma_s, "Scattering coefficient (>= 0)")->required();
-  cmd->add_option("--sigma-a", o->medium.sigma_a, "Absorption coefficient (>= 0)")->required();
-  cmd->add_option("--g", o->medium.g, "Henyey-Greenstein asymmetry, in (-1, 1)")->required();
-  cmd->add_option("--radius", o->medium.radius, "Radius of the sphere of medium (> 0)")->capture_default_str();
+  add_medium_options(*cmd, o->medium, true);
   cmd->add_option("--width", o->width, "Image width in pixels")->capture_default_str();
   cmd->add_option("--height", o->height, "Image height in pixels")->capture_default_str();
   cmd->add_option("--spp", o->spp, "Camera paths per pixel (e.g. 64)")->required();

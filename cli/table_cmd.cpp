@@ -128,10 +128,7 @@ void add_import_command(CLI::App& app) {
   cmd->add_option("--alpha-bins", o->alpha_bins, "Equal bins of the exit-point angle alpha on [0, pi]")->required();
   cmd->add_option("-o,--output", o->output, "Output table (HDF5)")->required();
   cmd->add_option("--paths", o->paths, "Paths launched (default: the counts' total, as if every path escaped)");
-  cmd->add_option("--sigma-s", o->medium.sigma_s, "Scattering coefficient (>= 0), with --sigma-a and --g");
-  cmd->add_option("--sigma-a", o->medium.sigma_a, "Absorption coefficient (>= 0)");
-  cmd->add_option("--g", o->medium.g, "Henyey-Greenstein asymmetry, in (-1, 1)");
-  cmd->add_option("--radius", o->medium.radius, "Sphere radius (> 0)")->capture_default_str();
+  add_medium_options(*cmd, o->medium, false);  // all three or none (run_import)
   cmd->add_flag("--quiet", o->quiet, "No summary line");
   cmd->callback([o, cmd] { run_import(*o, *cmd); });
 }
