@@ -12,7 +12,6 @@
 #include <stf/lookup.h>
 #include <stf/math.h>
 #include <stf/pack.h>
-#include <stf/sampler.h>
 #include <stf/stride.h>
 
 #include <cmath>
@@ -98,7 +97,6 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "render_medium: no medium '%s' in the pack, or a bad number\n", name.c_str());
     return 2;
   }
-  // Samplers are built once per entry; they are const and thread-safe.
   std::vector<stf::StrideForm> forms;  // built once: each model's draw resolved for strides
   for (const stf::PackEntry& e : pack) forms.emplace_back(e.model);
 

@@ -18,8 +18,7 @@ StrideForm::StrideForm(const StfModel& model)
     : bins_(model.bins()), lobes_per_bin_(model.lobes), sh_(model.kind == ModelKind::kSh),
       turns_(!model.alpha_turn.empty()), escape_probability_(model.escape_probability),
       outcomes_(outcome_weights(model)), sh_nz_(model.sh_nz) {
-  StfModel m = model;
-  if (m.hemispherical && m.lobe_norm.size() != m.vmf.size()) m.rebuild_lobe_norms();
+  const StfModel& m = model;
   if (m.once_fraction > 0) once_ = OnceScattered(m.tau, m.g);
   for (int b = 0; b < bins_; ++b) {
     const double a0 = m.alpha_edges[std::size_t(b)], a1 = m.alpha_edges[std::size_t(b) + 1];
@@ -89,13 +88,8 @@ Vec3 StrideForm::sh_direction(int bin, double u, double v) const {
   return equal_area_direction(sh_nz_, cell, in_cell, v);
 }
 
-Stride StrideForm::singular(int outcome, double r, double u1, double u2, double u3) const {
+Stride StrideForm::once_scattered(double r, double u1, double u2, double u3) const {
   Stride s;
-  if (outcome == bins_) {
-    s.point = s.direction = {0, 0, 1};
-    s.component = kUncollided;
-    return s;
-  }
   once_.sample(r, u1, u2, u3, s.point, s.direction);
   s.component = kOnceScattered;
   return s;

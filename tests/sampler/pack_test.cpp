@@ -34,6 +34,9 @@ TEST(Pack, PacksOfOtherVersionsAreRefusedNamingTheFix) {
   EXPECT_NE(error.find("pack version " + std::to_string(kPackVersion - 1) + " is older"), std::string::npos) << error;
   EXPECT_NE(error.find("stf pack"), std::string::npos) << error;
   EXPECT_TRUE(out.empty());
+  bytes[8] = std::uint8_t(kPackVersion + 1);
+  EXPECT_FALSE(read_pack(bytes.data(), bytes.size(), out, error));
+  EXPECT_NE(error.find("is newer"), std::string::npos) << error;
 }
 
 std::vector<PackEntry> round_trip(const std::vector<PackEntry>& in) {

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -30,7 +31,7 @@ struct StfModel {
   // The medium (of the source table) and its dimensionless numbers; all NaN in a model of a
   // table that named no medium (such a model has no once-scattered part and cannot be packed).
   double sigma_s = 0, sigma_a = 0, g = 0, radius = 1, tau = 0, albedo = 0;
-  bool has_medium() const { return !(tau != tau); }
+  bool has_medium() const { return !std::isnan(tau); }
   double escape_probability = 0, absorbed_fraction = 0, truncated_fraction = 0;
   // Share of the escapes that collided exactly once (format version 3): drawn exactly from the
   // medium's tau and g (stf/once_scattered.h), never fitted. Everything below describes the

@@ -123,7 +123,7 @@ class StrideForm {
   Vec3 sh_direction(int bin, double u, double v) const;
   template <typename Uniform>
   Vec3 direction(int bin, Uniform& uniform) const;
-  Stride singular(int outcome, double r, double u1, double u2, double u3) const;
+  Stride once_scattered(double r, double u1, double u2, double u3) const;
   // A draw on the unit sphere about the origin, in frame f (f.z the start direction): the
   // azimuth turns f once, and the exit point and direction are read off the turned frame.
   template <typename Uniform>
@@ -165,9 +165,10 @@ template <typename Uniform>
 Stride StrideForm::draw(const Frame& f, Uniform& uniform) const {
   double r;
   const int outcome = outcomes_.sample(uniform(), r);
-  if (outcome >= bins_) {
+  if (outcome == bins_) return {f.z, f.z, kUncollided};  // straight through: nothing to draw
+  if (outcome > bins_) {
     const double u1 = uniform(), u2 = uniform();
-    const Stride s = singular(outcome, r, u1, u2, uniform());
+    const Stride s = once_scattered(r, u1, u2, uniform());
     return {f(s.point), f(s.direction), s.component};
   }
   const Bin& bin = bin_[std::size_t(outcome)];
