@@ -15,7 +15,6 @@ struct PoolTry {
 
 struct FitConfig {
   // Pools (fit_neighbours.cpp, fit_bins.cpp).
-  double neighbour_weight = 0.5;     // each nearest neighbour's deviance in a pooled fit
   double pool_below_escapes = 4e4;   // bins with fewer escapes (two or more collisions, both halves) are pooled
   double escapes_per_lobe = 50;      // a bin gets at most one lobe per this many escapes it is fitted to
   PoolTry pool_tries[2] = {{3, true}, {4, false}};  // wider pools tried bin by bin: sloped, then flat

@@ -55,7 +55,7 @@ std::vector<PoolTry> choose_pooling(const Escapes& e, const FitSettings& s, cons
       fits = std::move(pooled.fits), score = std::move(pooled.score);
     }
   }
-  r.neighbour_weight = chosen == alone ? 0 : kConfig.neighbour_weight;
+  r.neighbour_weight = chosen == alone ? 0 : pool_weight(1, 1);
   return chosen;
 }
 

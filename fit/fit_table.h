@@ -22,7 +22,7 @@ struct FitSettings {
   int alpha_degree = -1;   // sh: >= 0 replaces the bins' coefficients by a Chebyshev series in cos(alpha)
   int max_blend = StfModel::kMaxBlend;  // auto: the widest alpha blend tried (StfModel::alpha_blend)
   // vmf/hvmf auto: whether fitting each bin together with its neighbours' escapes, turned to
-  // its heading (kConfig.neighbour_weight), is tried on held-out data.
+  // its heading (pool_weight(1, 1)), is tried on held-out data.
   bool pool_neighbours = true;
   // Whether the escapes are folded over their mirror symmetry as they are fitted
   // (fold_over_mirror).
@@ -61,8 +61,7 @@ inline constexpr const char* kAblations[] = {"mirror", "pooling", "wide-pools", 
 // std::invalid_argument naming --ablate and what is allowed.
 void ablate(FitSettings& settings, const std::string& list);
 
-// A triangle in the distance d (bins): the nearest neighbours of width 1 count
-// kConfig.neighbour_weight.
+// A triangle in the distance d (bins): the nearest neighbours of width 1 count 1/2.
 inline constexpr double pool_weight(int width, int d) { return 1 - d / double(width + 1); }
 
 // The bins' headings (mean exit directions' angles about y, per alpha bin) smoothed across

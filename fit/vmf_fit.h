@@ -2,9 +2,6 @@
 // binned Poisson likelihood (Ceres, Levenberg-Marquardt on deviance residuals).
 #pragma once
 
-#include <array>
-#include <cstdint>
-#include <utility>
 #include <vector>
 
 #include "cell_integral.h"
@@ -12,8 +9,6 @@
 #include "stf/vmf.h"
 
 namespace stf::fit {
-
-class QuadratureLevels;
 
 // A neighbouring alpha bin's escapes fitted together with a bin's own: they are expected to
 // follow the bin's lobes turned by `angle` about y (the axis the exit point turns about as

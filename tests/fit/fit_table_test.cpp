@@ -239,13 +239,19 @@ TEST(FitTable, SmoothedHeadingsKeepTheTrendAndQuietTheNoise) {
   EXPECT_LT(smoothed, 0.5 * raw) << smoothed / raw;
 }
 
-// --model auto is what the project recommends: hemispherical lobes at their held-out size.
+// --model auto is what the project recommends: hemispherical lobes at their held-out size; its
+// model is hvmf:auto's.
 TEST(FitTable, AutoIsHemisphericalLobesAtTheirHeldOutSize) {
-  const FitSettings a = parse_model_spec("auto"), h = parse_model_spec("hvmf:auto");
-  EXPECT_TRUE(a.automatic && a.hemispherical && a.kind == ModelKind::kVmf);
-  EXPECT_EQ(a.automatic, h.automatic);
-  EXPECT_EQ(a.hemispherical, h.hemispherical);
   EXPECT_THROW(parse_model_spec("auto:3"), std::invalid_argument);
+  const Table t = make_table({4, 0.5, 0.3, 1}, 40000, "healpix:4", 9);
+  FitReport a, h;
+  const StfModel by_auto = fit_table(t, parse_model_spec("auto"), &a);
+  const StfModel by_hvmf = fit_table(t, parse_model_spec("hvmf:auto"), &h);
+  EXPECT_TRUE(by_auto.kind == ModelKind::kVmf && by_auto.hemispherical);
+  EXPECT_GT(a.candidates.size(), 1u);  // sizes chosen on the held-out half
+  EXPECT_EQ(a.chosen_size, h.chosen_size);
+  ASSERT_EQ(by_auto.vmf.size(), by_hvmf.vmf.size());
+  for (std::size_t i = 0; i < by_auto.vmf.size(); ++i) EXPECT_EQ(by_auto.vmf[i].kappa, by_hvmf.vmf[i].kappa) << i;
 }
 
 // The once-scattered escapes are an exact part too: their probability is the one-collision
