@@ -64,8 +64,8 @@ void run_import(const ImportOptions& o, const CLI::App& cmd) {
     fail("--paths (" + std::to_string(paths) + ") is fewer than the histogram's total count (" + std::to_string(total) + ")");
   stop_if_interrupted();
   out.write(minimal_table_file(layout, counts, [&](H5::H5File& f) {
-    h5::put_attr(f, "format", std::string("stf-table"));
-    h5::put_attr(f, "format_version", 1);
+    h5::put_attr(f, "format", std::string(kTableFormat));
+    h5::put_attr(f, "format_version", kTableFormatVersion);
     h5::put_attr(f, "grid", layout.grid);
     h5::put_attr(f, "generator", std::string("stf " STF_VERSION " import"));
     h5::put_attr(f, "imported_from", o.histogram);

@@ -48,6 +48,8 @@ class DirectionGrid {
 // Parses "csc:N" (1 <= N <= 1024) or "healpix:NSIDE" (a power of two, 1 <= NSIDE <= 8192).
 // Throws std::invalid_argument with a message naming what is allowed.
 std::unique_ptr<DirectionGrid> make_grid(const std::string& spec);
+// The finest grids stf makes: HEALPix NSIDE and the cube's N.
+inline constexpr int kMaxNside = 2048, kMaxCubeN = 1024;
 // The cell count of a grid spec, checked as make_grid checks it, without building the grid.
 std::int64_t grid_cell_count(const std::string& spec);
 

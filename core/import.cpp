@@ -32,6 +32,7 @@ std::string npy_field(const std::string& header, const std::string& key) {
   std::size_t from = header.find(':', at);
   if (from == std::string::npos) return "";
   from = header.find_first_not_of(' ', from + 1);
+  if (from == std::string::npos) return "";
   const std::size_t to = header[from] == '(' ? header.find(')', from) + 1 : header.find_first_of(",}", from);
   return header.substr(from, to - from);
 }

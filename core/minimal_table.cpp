@@ -52,10 +52,10 @@ void split_halves(const std::vector<double>& weight, std::uint64_t seed, Table& 
 }
 
 std::string grid_of_cells(std::int64_t cells) {
-  for (std::int64_t nside = 1; nside <= 8192; nside *= 2)
+  for (std::int64_t nside = 1; nside <= kMaxNside; nside *= 2)
     if (12 * nside * nside == cells) return "healpix:" + std::to_string(nside);
   const auto n = std::int64_t(std::llround(std::sqrt(double(cells) / 6)));
-  if (n >= 1 && n <= 1024 && 6 * n * n == cells) return "csc:" + std::to_string(n);
+  if (n >= 1 && n <= kMaxCubeN && 6 * n * n == cells) return "csc:" + std::to_string(n);
   return "";
 }
 

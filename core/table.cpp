@@ -74,7 +74,7 @@ std::string table_file(const Table& t) {
     H5::Exception::dontPrint();
     MemoryFile memory;
     H5::H5File& file = memory.file();
-    put_attr(file, "format", std::string("stf-table"));
+    put_attr(file, "format", std::string(kTableFormat));
     put_attr(file, "format_version", kTableFormatVersion);
     put_medium(file, t.medium);
     put_attr(file, "paths", t.paths);

@@ -93,7 +93,8 @@ void put_sparse_halves(H5::Group& group, const char* name, int bins, std::int64_
 std::map<std::uint64_t, double> get_sparse_halves(const H5::H5File& file, const char* path, int bins,
                                                   std::int64_t cells);
 
-// The layout stf writes (format_version of a raw table).
+// The layout stf writes: a raw table's `format` and `format_version`.
+inline constexpr const char* kTableFormat = "stf-table";
 inline constexpr int kTableFormatVersion = 1;
 
 // The table as the bytes of its HDF5 file.

@@ -46,7 +46,7 @@ void read_medium(const H5::H5File& file, Table& t) {
 // Every attribute is optional (docs/formats.md, "Tables stf did not make"); totals a file lacks
 // are -1 until settle_totals knows the escapes.
 void read_header(const H5::H5File& file, Table& t) {
-  if (has_attr(file, "format") && get_string(file, "format") != "stf-table")
+  if (has_attr(file, "format") && get_string(file, "format") != kTableFormat)
     throw std::runtime_error("not an stf table (format attribute is not 'stf-table')");
   if (has_attr(file, "format_version"))
     if (int v = get_int(file, "format_version"); v != kTableFormatVersion)

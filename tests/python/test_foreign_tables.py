@@ -4,7 +4,6 @@ the command line (ctest, Debian's python3, STF_BINARY set).
 import os
 import subprocess
 import tempfile
-import time
 import unittest
 
 import h5py
@@ -139,16 +138,13 @@ class ForeignTables(unittest.TestCase):
         phi = np.arctan2(self.direction[:, 1], self.direction[:, 0])
         np.savetxt(self.path("million.txt"), np.column_stack([middle[b], theta[c], phi[c], np.ones(rows)]),
                    fmt=["%.17g", "%.17g", "%.17g", "%d"])
-        start = time.monotonic()
         check("import", self.path("million.txt"), "--grid", "healpix:8", "--alpha-bins", self.bins, "--quiet",
               "--paths", 2 * rows, "--sigma-s", 1, "--sigma-a", 0.1, "--g", 0.2, "-o", self.path("million.h5"))
-        seconds = time.monotonic() - start
         expected = np.bincount(b * self.cells + c, minlength=self.bins * self.cells).reshape(self.bins, self.cells)
         with h5py.File(self.path("million.h5"), "r") as f:
             np.testing.assert_array_equal(f["escape/weight"][()], expected)
             self.assertEqual(f.attrs["paths"], 2 * rows)
             self.assertAlmostEqual(f.attrs["tau"], 1.1)
-        self.assertLess(seconds, 30)  # 5 s on an idle machine; the margin is for loaded test runners
 
     def test_bad_rows_are_named_by_their_line(self):
         cases = {"0 1 2\n\n# note\n1 2 x\n": "line 4", "0 1 2\n1 2 3 4\n": "line 2",
