@@ -124,24 +124,36 @@ OutwardFactors outward_cell_means(const QuadratureLevels& levels, double a0, dou
   return f;
 }
 
-std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
-                                           double counts, const OutwardFactors* outward) {
-  std::vector<double> p(levels.at(0).point.size(), 0.0);
-  for (const VmfLobe& l : lobes) {
-    if (l.weight <= 0) continue;
-    const int level = levels.level_for_kappa(l.kappa, counts);
-    const std::vector<double> one = vmf_cell_probabilities({{1.0, l.kappa, l.mean}}, levels.at(level),
-                                                           outward ? &(*outward)[std::size_t(level)] : nullptr);
-    for (std::size_t c = 0; c < p.size(); ++c) p[c] += l.weight * one[c];
+std::vector<double> lobe_cell_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
+                                            double counts, const OutwardFactors* outward, const BinTurn* turn) {
+  const std::vector<double> every_cell(levels.centres().size(), 1.0);
+  LobeIntegrator cells(levels, every_cell, outward, turn);
+  return cells.probabilities(lobes, counts);
+}
+
+std::vector<double> density_cell_probabilities(const std::function<double(const Vec3&)>& density,
+                                               const CellQuadrature& q) {
+  std::vector<double> p(q.point.size() / std::size_t(q.per_cell), 0.0);
+  double total = 0;
+  for (std::size_t k = 0; k < q.point.size(); ++k) {
+    const double m = q.weight[k] * density(q.point[k]);
+    p[k / std::size_t(q.per_cell)] += m;
+    total += m;
   }
+  if (total > 0)
+    for (double& v : p) v /= total;
   return p;
 }
 
-std::vector<double> vmf_bin_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
-                                          double counts, const OutwardFactors* outward, const BinTurn& turn) {
-  const std::vector<double> every_cell(levels.centres().size(), 1.0);
-  LobeIntegrator bin(levels, every_cell, outward, &turn);
-  return bin.probabilities(lobes, counts);
+double poisson_deviance(const std::vector<double>& counts, const std::vector<double>& p) {
+  double total = 0, d = 0;
+  for (double n : counts) total += n;
+  for (std::size_t c = 0; c < counts.size(); ++c) {
+    const double mu = total * p[c];
+    if (counts[c] > 0) d += counts[c] * std::log(counts[c] / std::max(mu, 1e-300)) - counts[c];
+    d += mu;
+  }
+  return 2 * d;
 }
 
 LobeIntegrator::LobeIntegrator(const QuadratureLevels& levels, const std::vector<double>& counts,

@@ -7,10 +7,10 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <utility>
 #include <vector>
 
-#include "cell_probability.h"
 #include "grid.h"
 #include "stf/hemisphere.h"
 #include "stf/vmf.h"
@@ -66,15 +66,22 @@ class QuadratureLevels {
   double cell_solid_angle_;  // the largest cell's
 };
 
-// Per-cell probabilities of a vMF mixture, each lobe at the quadrature level the fit used for
-// it against `counts` escapes; with `outward`, of hemispherical lobes.
-std::vector<double> vmf_cell_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
-                                           double counts = 1e8, const OutwardFactors* outward = nullptr);
+// Per-cell probabilities of a vMF mixture (weights summing to 1) over every cell of the grid,
+// each lobe integrated by LobeIntegrator as for `counts` escapes (its quadrature level and
+// widening); with `outward`, of hemispherical lobes; with `turn`, averaged over the exit points
+// of a bin whose density turns across it, as the fit sees a turning bin's counts.
+std::vector<double> lobe_cell_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
+                                            double counts = 1e8, const OutwardFactors* outward = nullptr,
+                                            const BinTurn* turn = nullptr);
 
-// The same for a bin whose density turns across it: the turned density averaged over the bin's
-// exit points, as the fit sees a turning bin's counts (VmfFitOptions::turn).
-std::vector<double> vmf_bin_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
-                                          double counts, const OutwardFactors* outward, const BinTurn& turn);
+// Per-cell probabilities of a density per steradian (an SH model's) by the points of quadrature
+// `q`, normalised to sum to 1 (all zero if the density vanishes everywhere).
+std::vector<double> density_cell_probabilities(const std::function<double(const Vec3&)>& density,
+                                               const CellQuadrature& q);
+
+// Poisson deviance 2 sum [n log(n / mu) - (n - mu)] of counts against mu = total * p: twice
+// the log-likelihood ratio of the saturated model; smaller is a better fit.
+double poisson_deviance(const std::vector<double>& counts, const std::vector<double>& p);
 
 // The outward factors of the alpha bin [a0, a1] at the points of every level.
 OutwardFactors outward_factors(const QuadratureLevels& levels, double a0, double a1);

@@ -24,7 +24,7 @@ struct FitConfig {
   // is one noisy number, and neighbouring bins differ little.
   double neighbour_gain_weight = 0.5;
   double outward_cache_bytes = 256e6;  // the most memory a pass keeps every bin's outward factors in
-  // Headings and turns (headings.cpp).
+  // Headings and turns (fit_alpha.cpp).
   int heading_window = 5;    // bins on either side of the local quadratic that smooths headings
   double max_fitted_turn = 4;  // radians of turn per radian of alpha, at most
   // Blends (fit_blend.cpp). A width is kept where its held-out gain over none exceeds this many

@@ -8,7 +8,7 @@
 #include <stdexcept>
 
 #include "alpha_tilt.h"
-#include "cell_probability.h"
+#include "cell_integral.h"
 #include "grid.h"
 #include "stf/tilt.h"
 
@@ -93,10 +93,10 @@ std::vector<double> smooth_cell_probabilities(const StfModel& m, int b, const Qu
     // The quadrature levels the fitter used for lobes this narrow; hemispherical lobes with the
     // outward factor's means over sub-cells, so that cells the tangent planes cut keep their share.
     // The bin's factor turned by `turn` is the factor of the bin's edges moved by it.
-    if (!m.hemispherical) return vmf_cell_probabilities(lobes, levels);
+    if (!m.hemispherical) return lobe_cell_probabilities(lobes, levels);
     const OutwardFactors outward =
         outward_cell_means(levels, m.alpha_edges[std::size_t(b)] + turn, m.alpha_edges[std::size_t(b) + 1] + turn);
-    return vmf_cell_probabilities(lobes, levels, 1e8, &outward);
+    return lobe_cell_probabilities(lobes, levels, 1e8, &outward);
   }
   return density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, turn_about_y(w, -turn)); },
                                     levels.at(2));

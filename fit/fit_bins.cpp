@@ -171,9 +171,9 @@ BinFits fit_bins(const Escapes& e, const Pass& pass, const QuadratureLevels& lev
 
 std::vector<double> lobe_cells(const BinFits& fits, const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
                                double escapes, double a0, double a1) {
-  if (!fits.hemispherical) return vmf_cell_probabilities(lobes, levels, escapes);
+  if (!fits.hemispherical) return lobe_cell_probabilities(lobes, levels, escapes);
   const OutwardFactors outward = outward_factors(levels, a0, a1);
-  return vmf_cell_probabilities(lobes, levels, escapes, &outward);
+  return lobe_cell_probabilities(lobes, levels, escapes, &outward);
 }
 
 std::vector<double> bin_probabilities(const BinFits& fits, int b, const ShSmoothing& t, const QuadratureLevels& levels,
@@ -181,11 +181,10 @@ std::vector<double> bin_probabilities(const BinFits& fits, int b, const ShSmooth
   if (fits.kind == ModelKind::kVmf) {
     const double escapes = both_halves(*fits.table, b);
     const std::vector<double>& edges = fits.table->alpha_edges;
-    if (fits.turns.empty()) return lobe_cells(fits, fits.lobes[b], levels, escapes, edges[std::size_t(b)], edges[std::size_t(b) + 1]);
-    const OutwardFactors outward =
-        fits.hemispherical ? outward_factors(levels, edges[std::size_t(b)], edges[std::size_t(b) + 1]) : OutwardFactors{};
-    return vmf_bin_probabilities(fits.lobes[b], levels, escapes, fits.hemispherical ? &outward : nullptr,
-                                 fits.turns[std::size_t(b)]);
+    const double a0 = edges[std::size_t(b)], a1 = edges[std::size_t(b) + 1];
+    const OutwardFactors outward = fits.hemispherical ? outward_factors(levels, a0, a1) : OutwardFactors{};
+    return lobe_cell_probabilities(fits.lobes[b], levels, escapes, fits.hemispherical ? &outward : nullptr,
+                                   fits.turns.empty() ? nullptr : &fits.turns[std::size_t(b)]);
   }
   std::vector<double> c = fits.sh[b];
   smooth_sh(c, fits.size, t);

@@ -1,18 +1,7 @@
-// The alpha shape, the model of the final fits, and its diagnostics (fit_stages.h).
+// The model of the final fits, and its diagnostics (fit_stages.h).
 #include "fit_stages.h"
 
 namespace stf::fit::stages {
-
-AlphaShape alpha_shape(Escapes& e, const FitSettings& s) {
-  const Table& t = e.table;
-  AlphaShape a;
-  if (s.smooth_alpha) a.marginal = smooth_alpha_marginal(t);
-  a.tilts = !s.tilt                        ? std::vector<double>(std::size_t(t.alpha_bins), 0.0)
-            : a.marginal.sub_escapes.empty() ? fit_alpha_tilts(t)
-                                             : tilts_from_sub_counts(t, a.marginal.sub_escapes);
-  if (s.kind == ModelKind::kVmf && s.turn && t.alpha_bins > 1) e.set_turns(a.tilts);
-  return a;
-}
 
 namespace {
 

@@ -5,7 +5,8 @@
 //  - fit_heldout.cpp: held-out scores, and with them the model size;
 //  - fit_neighbours.cpp: the pools, and what each bin takes from its neighbours;
 //  - fit_blend.cpp: the blend widths, from held-out scores of turned neighbours;
-//  - fit_model.cpp: the alpha shape, the model of the final fits and its diagnostics.
+//  - fit_alpha.cpp: the alpha marginal, the tilts and the turns;
+//  - fit_model.cpp: the model of the final fits and its diagnostics.
 // Internal to fit/: the names live in stf::fit::stages.
 #pragma once
 
@@ -20,7 +21,7 @@
 
 #include "alpha_marginal.h"
 #include "alpha_tilt.h"
-#include "cell_probability.h"
+#include "cell_integral.h"
 #include "fit_table.h"
 #include "grid.h"
 #include "mirror.h"

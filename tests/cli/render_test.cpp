@@ -9,11 +9,8 @@
 
 namespace {
 
-// A sphere of optical radius 8 and the pack of its tau 2 and 4 spheres, built once.
+// A sphere of optical radius 8; the pack of its tau 2 and 4 spheres is tests/cli/render_scene.toml's.
 const std::string kThick = "--sigma-s 7.92 --sigma-a 0.08 --g 0.5 --width 32 --height 32 ";
-const char* kScene =
-    "[settings]\npaths = 2e5\ngrid = \"healpix:8\"\nalpha_bins = 30\nmodel = \"vmf:auto\"\n"
-    "[[media]]\nname = \"thick\"\nsigma_s = 7.92\nsigma_a = 0.08\ng = 0.5\nradius_min = 0.25\nradius_max = 0.5\n";
 
 struct RenderedImage {
   std::vector<double> mean, variance_of_mean;
@@ -27,16 +24,16 @@ RenderedImage read_image(const std::string& path, hsize_t height, hsize_t width)
 
 class Render : public Cli {
  protected:
+  // ctest builds the pack once for all these tests (the RenderPack fixture); run by hand, the
+  // first test builds it.
   static void SetUpTestSuite() {
-    pack_dir_ = fs::path(::testing::TempDir()) / ("stf_render_pack_" + std::to_string(::getpid()));
-    fs::create_directories(pack_dir_);
-    std::ofstream(pack_dir_ / "scene.toml") << kScene;
-    const std::string cmd = std::string(STF_BINARY) + " build " + (pack_dir_ / "scene.toml").string() + " --quiet --cache " +
-                            (pack_dir_ / "cache").string() + " -o " + pack().string();
+    if (fs::exists(pack())) return;
+    fs::create_directories(pack().parent_path());
+    const std::string cmd = std::string(STF_BINARY) + " build " + STF_RENDER_SCENE + " --quiet --cache " +
+                            (pack().parent_path() / "cache").string() + " -o " + pack().string();
     ASSERT_EQ(std::system(cmd.c_str()), 0);
   }
-  static void TearDownTestSuite() { fs::remove_all(pack_dir_); }
-  static fs::path pack() { return pack_dir_ / "thick.stfpack"; }
+  static fs::path pack() { return STF_RENDER_PACK; }
 
   void expect_one_line(const Result& r, const std::string& names, const std::string& what) {
     EXPECT_EQ(r.status, 2) << what << "\n" << r.err;
@@ -44,9 +41,7 @@ class Render : public Cli {
     EXPECT_NE(r.err.find(names), std::string::npos) << what << "\n" << r.err;
   }
 
-  static fs::path pack_dir_;
 };
-fs::path Render::pack_dir_;
 
 // The targets of the strided method: no 4 x 4 block of pixels beyond 4.5 sigma on the two
 // images' combined variance, and the whole image's mean within 1% (and within its noise).

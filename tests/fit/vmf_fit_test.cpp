@@ -7,9 +7,10 @@
 #include <cmath>
 #include <limits>
 
-#include "cell_probability.h"
+#include "cell_integral.h"
 #include "exp_in_place.h"
 #include "stf/hemisphere.h"
+#include "reference_cells.h"
 #include "rng.h"
 #include "seed.h"
 
@@ -58,7 +59,7 @@ Recovery recover(const std::vector<VmfLobe>& truth, const char* spec, std::int64
   VmfFitResult fit = fit_vmf(counts, levels, int(truth.size()));
   // "Exact" cell probabilities: a quadrature a level finer than the fit could use.
   CellQuadrature fine = grid->quadrature(QuadratureLevels::kMaxLevel + 1);
-  std::vector<double> exact = vmf_cell_probabilities(truth, fine), fitted = vmf_cell_probabilities(fit.lobes, fine);
+  std::vector<double> exact = test::reference_cells(truth, fine), fitted = test::reference_cells(fit.lobes, fine);
   return {tv(fitted, exact), tv(normalised(counts), exact), poisson_deviance(counts, fitted),
           poisson_deviance(counts, exact), fit};
 }
@@ -239,8 +240,9 @@ TEST(VmfFit, ParametersAtTheirBoundsDoNotHoldTheOthersBack) {
 
 TEST(VmfFit, CellProbabilitiesOfANarrowLobeSumToOne) {
   auto grid = make_grid("csc:5");
+  const QuadratureLevels levels(*grid);
   for (double kappa : {0.0, 1e-8, 1.0, 1e4, 1e7}) {
-    std::vector<double> p = vmf_cell_probabilities({VmfLobe{1, kappa, normalize({1, 2, 3})}}, grid->quadrature(1));
+    std::vector<double> p = lobe_cell_probabilities({VmfLobe{1, kappa, normalize({1, 2, 3})}}, levels);
     double s = 0;
     for (double v : p) {
       ASSERT_TRUE(std::isfinite(v));
@@ -275,7 +277,7 @@ TEST(VmfFit, MoreLobesNeverFitAPeakedHistogramWorse) {
   double previous = std::numeric_limits<double>::infinity();
   for (int K : {3, 4, 6, 8, 12, 16}) {
     VmfFitResult fit = fit_vmf(counts, levels, K);
-    const double deviance = poisson_deviance(counts, vmf_cell_probabilities(fit.lobes, levels, 1e6));
+    const double deviance = poisson_deviance(counts, lobe_cell_probabilities(fit.lobes, levels, 1e6));
     // Within a few units (the optimiser's tolerance), never a jump.
     EXPECT_LT(deviance, previous + 5) << K << " lobes";
     previous = std::min(previous, deviance);
@@ -305,8 +307,8 @@ TEST(VmfFit, HemisphericalLobesHoldACosineLawThatPlainLobesCannot) {
   VmfFitOptions hemi;
   hemi.outward = &outward;
   const VmfFitResult h = fit_vmf(counts, levels, 2, hemi), plain = fit_vmf(counts, levels, 12);
-  const double tv_h = tv(vmf_cell_probabilities(h.lobes, levels, 1e6, &outward), p);
-  const double tv_plain = tv(vmf_cell_probabilities(plain.lobes, levels, 1e6), p);
+  const double tv_h = tv(lobe_cell_probabilities(h.lobes, levels, 1e6, &outward), p);
+  const double tv_plain = tv(lobe_cell_probabilities(plain.lobes, levels, 1e6), p);
   EXPECT_LT(tv_h, 0.01);
   EXPECT_GT(tv_plain, 2 * tv_h);
 }
@@ -357,8 +359,8 @@ TEST(VmfFit, CellMeansOfTheOutwardFactorKeepTheCutCells) {
       [&](const Vec3& w) { return vmf_pdf(lobe.kappa, dot(lobe.mean, w)) * factor(w); },
       grid->quadrature(QuadratureLevels::kMaxLevel + 2));
   const OutwardFactors at_points = outward_factors(levels, a0, a1), means = outward_cell_means(levels, a0, a1);
-  const std::vector<double> point_rule = vmf_cell_probabilities({lobe}, levels, 1e8, &at_points);
-  const std::vector<double> mean_rule = vmf_cell_probabilities({lobe}, levels, 1e8, &means);
+  const std::vector<double> point_rule = lobe_cell_probabilities({lobe}, levels, 1e8, &at_points);
+  const std::vector<double> mean_rule = lobe_cell_probabilities({lobe}, levels, 1e8, &means);
   int emptied_by_points = 0, emptied_by_means = 0;
   for (std::size_t c = 0; c < truth.size(); ++c) {
     emptied_by_points += truth[c] > 1e-7 && point_rule[c] == 0;
@@ -387,7 +389,7 @@ TEST(VmfFit, NeighboursPooledAtTheirHeadingAddTheirEscapes) {
   const std::vector<VmfLobe> truth = {{0.7, 120, normalize({0.3, 0, 0.95})}, {0.3, 15, normalize({0.6, 0.2, 0.8})}};
   const double angle = 0.1;
   CellQuadrature fine = grid->quadrature(QuadratureLevels::kMaxLevel + 1);
-  const std::vector<double> exact = vmf_cell_probabilities(truth, fine);
+  const std::vector<double> exact = test::reference_cells(truth, fine);
   auto scaled = [](std::vector<double> p, double n) {
     for (double& v : p) v *= n;
     return p;
@@ -401,9 +403,9 @@ TEST(VmfFit, NeighboursPooledAtTheirHeadingAddTheirEscapes) {
   const double n = 1e6;
   const std::vector<double> own = scaled(exact, n);
   for (double turn : {angle, 0.8}) {
-    const std::vector<double> below = scaled(vmf_cell_probabilities(turned(truth, -turn), fine), n),
-                              above = scaled(vmf_cell_probabilities(turned(truth, turn), fine), n);
-    EXPECT_LT(tv(vmf_cell_probabilities(pooled_fit(own, below, above, turn), fine), exact), 2e-3) << turn;
+    const std::vector<double> below = scaled(test::reference_cells(turned(truth, -turn), fine), n),
+                              above = scaled(test::reference_cells(turned(truth, turn), fine), n);
+    EXPECT_LT(tv(test::reference_cells(pooled_fit(own, below, above, turn), fine), exact), 2e-3) << turn;
     // Noise-free counts: with exact derivatives Gauss-Newton converges as fast pooled as alone
     // (a turned deviance whose derivatives by the mean were not turned back takes 13
     // iterations at 0.8 rad against 4).
@@ -415,7 +417,7 @@ TEST(VmfFit, NeighboursPooledAtTheirHeadingAddTheirEscapes) {
   const std::vector<double> noisy = draw_histogram(truth, *grid, 3000, 11),
                             noisy_below = draw_histogram(turned(truth, -angle), *grid, 3000, 12),
                             noisy_above = draw_histogram(turned(truth, angle), *grid, 3000, 13);
-  auto error = [&](const std::vector<VmfLobe>& lobes) { return tv(vmf_cell_probabilities(lobes, fine), exact); };
+  auto error = [&](const std::vector<VmfLobe>& lobes) { return tv(test::reference_cells(lobes, fine), exact); };
   const double alone = error(fit_vmf(noisy, levels, 2).lobes);
   const double pooled = error(pooled_fit(noisy, noisy_below, noisy_above, angle));
   const double unturned = error(pooled_fit(noisy, noisy_below, noisy_above, 0));
@@ -447,8 +449,8 @@ TEST(VmfFit, SlopedPoolsFollowNeighboursThatChangeShape) {
     lobes[1].mean = turned({lobes[1]}, 0.05 * d)[0].mean;
     return lobes;
   };
-  const std::vector<double> exact = vmf_cell_probabilities(truth, fine);
-  auto error = [&](const std::vector<VmfLobe>& lobes) { return tv(vmf_cell_probabilities(lobes, fine), exact); };
+  const std::vector<double> exact = test::reference_cells(truth, fine);
+  auto error = [&](const std::vector<VmfLobe>& lobes) { return tv(test::reference_cells(lobes, fine), exact); };
   auto pooled_fit = [&](const std::vector<double>& own, const std::vector<std::vector<double>>& near, bool sloped) {
     VmfFitOptions o;
     o.sloped = sloped;
@@ -459,7 +461,7 @@ TEST(VmfFit, SlopedPoolsFollowNeighboursThatChangeShape) {
   const double n = 1e6;
   std::vector<std::vector<double>> exact_near(5);
   for (int d = -2; d <= 2; ++d) {
-    exact_near[std::size_t(d + 2)] = vmf_cell_probabilities(neighbour_lobes(d), fine);
+    exact_near[std::size_t(d + 2)] = test::reference_cells(neighbour_lobes(d), fine);
     for (double& v : exact_near[std::size_t(d + 2)]) v *= n;
   }
   const std::vector<double>& own = exact_near[2];

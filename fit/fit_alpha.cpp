@@ -1,10 +1,11 @@
-// The bins' headings smoothed across alpha, and the turns taken from their slopes (fit_table.h).
+// The alpha stage (fit_stages.h): the smoothed alpha marginal, the tilts, and the turns taken
+// from the slopes of the bins' headings smoothed across alpha (fit_table.h).
 #include <Eigen/Dense>
 
 #include <algorithm>
 #include <cmath>
 
-#include "fit_table.h"
+#include "fit_stages.h"
 #include "stf/vec3.h"
 
 namespace stf::fit {
@@ -46,5 +47,20 @@ std::vector<double> alpha_turns(const std::vector<double>& headings, const std::
     turn[b] = std::clamp(slopes[b] / (alpha_edges[b + 1] - alpha_edges[b]), -kConfig.max_fitted_turn, kConfig.max_fitted_turn);
   return turn;
 }
+
+namespace stages {
+
+AlphaShape alpha_shape(Escapes& e, const FitSettings& s) {
+  const Table& t = e.table;
+  AlphaShape a;
+  if (s.smooth_alpha) a.marginal = smooth_alpha_marginal(t);
+  a.tilts = !s.tilt                        ? std::vector<double>(std::size_t(t.alpha_bins), 0.0)
+            : a.marginal.sub_escapes.empty() ? fit_alpha_tilts(t)
+                                             : tilts_from_sub_counts(t, a.marginal.sub_escapes);
+  if (s.kind == ModelKind::kVmf && s.turn && t.alpha_bins > 1) e.set_turns(a.tilts);
+  return a;
+}
+
+}  // namespace stages
 
 }  // namespace stf::fit
