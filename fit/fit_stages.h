@@ -281,7 +281,6 @@ std::vector<PoolTry> choose_pooling(const Escapes& e, const FitSettings& s, cons
 // What a pass of pools gains in each bin it tries: the held-out NLL the pooled fits save against
 // the choice so far, in the bin and, weighted kConfig.neighbour_gain_weight, in its two
 // neighbours where they tried the same pool.
-
 std::vector<double> pooled_gain(const Pooling& pool, const HeldOut& before, const HeldOut& pooled);
 
 // Wider pools (kConfig.pool_tries), fitted on half 0 in the bins they are tried in: sloped ones in the
@@ -293,13 +292,6 @@ std::vector<double> pooled_gain(const Pooling& pool, const HeldOut& before, cons
 // bin by bin.
 void wide_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid, const QuadratureLevels& levels,
                   SizeChoice& choice, std::vector<PoolTry>& pools);
-
-// Held-out NLL of the half-0 fits behind `flat` (its per-bin cell log-probabilities) with each
-// bin's density blended as a model of each width 0 .. max_width blends it (tilts from half 0),
-// and the width chosen; in turning models (`turned`) each neighbour's density as the sampler
-// turns it into the bin. Blending adds no parameter, but a width is kept only where its held-out
-// gain over none exceeds kConfig.blend_standard_errors standard errors. Among the widths so kept
-// the lowest NLL wins.
 
 // Each bin's half-table lobes (standing still) as a turning model blends them into the bins
 // within `width` of it: bin j in bin b turned by bin j's rate from j's middle to b's (the middle
@@ -328,18 +320,22 @@ struct BlendChoice {
 // within kConfig.blend_reach at hat weights 1 - |j - b| / (reach + 1), is largest (none where no
 // width gains): a bin's own gain is the score of a few hundred escapes, its neighbours' say what
 // a bin's cannot.
-
 std::vector<int> widths_by_bin(const std::vector<HeldOut>& blended);
 
 // The held-out scores of a model whose bin b is blended at widths[b].
 HeldOut scores_at_widths(const std::vector<HeldOut>& blended, const std::vector<int>& widths);
 
-// One width (0 .. s.max_blend) for every bin, and widths by bin where they gain over it by more
-// than kConfig.blend_standard_errors standard errors (the widths are chosen on the half that scores them,
-// so a small gain is their selection's; never without s.blend_by_bin). Near the axis of a
-// forward medium the density changes its shape from bin to bin and wants a narrow blend, far
-// from it the bins are noisy and want the widest; where the widest suits every bin the gain
-// stays within noise and one width is kept.
+// The blend widths, from the held-out NLL of the half-0 fits behind `flat` (its per-bin cell
+// log-probabilities) with each bin's density blended as a model of each width 0 .. max_width
+// blends it (tilts from half 0; in turning models each neighbour's density as the sampler turns
+// it into the bin, `turned`). Blending adds no parameter, but a width is kept only where its
+// held-out gain over none exceeds kConfig.blend_standard_errors standard errors; among the
+// widths so kept the lowest NLL wins, one for every bin. Widths by bin replace it where they gain
+// over it by that margin too (they are chosen on the half that scores them, so a small gain is
+// their selection's; never without s.blend_by_bin). Near the axis of a forward medium the
+// density changes its shape from bin to bin and wants a narrow blend, far from it the bins are
+// noisy and want the widest; where the widest suits every bin the gain stays within noise and
+// one width is kept.
 BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, const FitSettings& s, const TurnedNeighbours& turned);
 
 // How each bin borrows from its neighbours: the pools its final fit reaches into, and the
