@@ -25,6 +25,11 @@ def check(*args):
         raise AssertionError(f"stf {' '.join(map(str, args))}: {err}")
 
 
+def write_bytes(path, data):
+    with open(path, "wb") as f:
+        f.write(data)
+
+
 def write_minimal(path, weight, edges, direction, solid_angle, **attrs):
     with h5py.File(path, "w") as f:
         f["escape/weight"] = weight
@@ -159,6 +164,31 @@ class ForeignTables(unittest.TestCase):
             self.assertIn(where, err, text)
             self.assertEqual(err.count("\n"), 1, err)
             self.assertFalse(os.path.exists(self.path("bad.h5")))
+
+    def test_npy_files_it_cannot_read_are_refused(self):
+        counts = np.ones((self.bins, self.cells))
+        np.save(self.path("good.npy"), counts)
+        with open(self.path("good.npy"), "rb") as f:
+            good = f.read()
+        cases = {
+            "fortran.npy": (lambda p: np.save(p, np.asfortranarray(counts)), "C order"),
+            "shape.npy": (lambda p: np.save(p, counts[:, :-1]), "shape"),
+            "big_endian.npy": (lambda p: np.save(p, counts.astype(">f8")), "little-endian"),
+            "complex.npy": (lambda p: np.save(p, counts.astype("<c16")), "dtype"),
+            "negative.npy": (lambda p: np.save(p, -counts), "negative"),
+            "nan.npy": (lambda p: np.save(p, np.where(counts > 0, np.nan, counts)), "non-finite"),
+            "truncated.npy": (lambda p: write_bytes(p, good[:-8]), "values"),
+            "header_only.npy": (lambda p: write_bytes(p, good[:40]), "header"),
+            "not.npy": (lambda p: write_bytes(p, b"\x93NUMPX" + good[6:]), "not a .npy"),
+        }
+        for name, (write, words) in cases.items():
+            write(self.path(name))
+            status, err = stf("import", self.path(name), "--grid", "healpix:8", "--alpha-bins", self.bins,
+                              "-o", self.path("bad.h5"))
+            self.assertEqual(status, 2, name)
+            self.assertIn(words, err, name)
+            self.assertEqual(err.count("\n"), 1, err)
+            self.assertFalse(os.path.exists(self.path("bad.h5")), name)
 
     def test_tables_that_disagree_or_hide_their_grid_are_refused(self):
         counts = np.ones((self.bins, self.cells))
