@@ -28,10 +28,12 @@ pixel block sums over their combined variance (max |z|, target <= 4.5) and the w
 means (relative difference, target within 1%).
 
 Writes OUT/render_bench.json, OUT/render_images.png (per medium: brute, stf, z of the
-difference) and OUT/render_error_vs_time.png. Usage:
+difference) and OUT/render_error_vs_time.png. The pictures are a pair of their own at
+--figure-size pixels and --figure-spp (default: the largest of --spp), seeds 3 and 4, with the
+same pack (0: the timed images at the largest spp). Usage:
   bench/render_bench.py [--out DIR] [--taus 10,30,100,300] [--media TAU:ALBEDO:G,...] [--dense]
                         [--spp 16,64,256,1024] [--ref-spp 4096] [--size 64] [--tolerance 0.02]
-                        [--quick]
+                        [--figure-size 256] [--figure-spp N] [--quick]
 --taus are media of albedo 0.999, g 0.8; --dense adds tau 300 and 1000 at albedo 0.9999 and tau
 1000 at albedo 0.99999, g 0.85 (a cumulus).
 Needs build/stf and Debian's python3-matplotlib and python3-h5py.
@@ -108,6 +110,12 @@ def run_medium(stf, spec, a, cache, out):
     row["speedup_equal_error"] = (br["mse"] * br["seconds"]) / (sr["mse"] * sr["seconds"]) if sr["mse"] > 0 else None
     row["speedup_equal_variance"] = (br["mean_variance"] * br["seconds"]) / (sr["mean_variance"] * sr["seconds"])
     add_bound(row, br, sr)
+    if a.figure_size > 0:
+        bm, bv, _ = stf.render(m, radius, a.figure_spp, "brute", os.path.join(out, f"{name}_figure_brute.h5"), seed=3,
+                               size=a.figure_size)
+        sm, sv, _ = stf.render(m, radius, a.figure_spp, "stf", os.path.join(out, f"{name}_figure_stf.h5"), seed=4,
+                               size=a.figure_size, extra=stf_args)
+        z = render_pair.block_z(sm, sv, bm, bv)
     return row, (bm, sm, z)
 
 
@@ -138,9 +146,10 @@ def plot_images(rows, images, path):
         for ax, image, title in ((ax_row[0], bm, "brute force"), (ax_row[1], sm, f"stf ({row['spheres']} spheres)")):
             ax.imshow(np.clip((image - lo) / (hi - lo), 0, 1) ** (1 / 1.5), cmap="inferno", vmin=0, vmax=1,
                       interpolation="nearest")
-            ax.set_title(f"tau {row['tau']:g}, albedo {row['albedo']:g}, g {row['g']:g}: {title}", fontsize=8)
+            ax.set_title(f"tau {row['tau']:g}, albedo {row['albedo']:g}, g {row['g']:g}: {title}, "
+                         f"{image.shape[1]} x {image.shape[0]}", fontsize=8)
         im = ax_row[2].imshow(z, cmap="RdBu_r", vmin=-4.5, vmax=4.5, interpolation="nearest")
-        ax_row[2].set_title(f"z, 4x4 blocks (max {row['max_block_z']:.2f})", fontsize=8)
+        ax_row[2].set_title(f"z, 4x4 blocks (max {np.nanmax(np.abs(z)):.2f})", fontsize=8)
         fig.colorbar(im, ax=ax_row[2])
         for ax in ax_row:
             ax.set_xticks([]), ax.set_yticks([])
@@ -212,11 +221,14 @@ def main():
     ap.add_argument("--ref-spp", type=int, default=4096, help="0: no reference, the images' variances stand in")
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--tolerance", type=float, default=0.02)
+    ap.add_argument("--figure-size", type=int, default=256, help="pixels of the pictures' own pair (0: the timed images)")
+    ap.add_argument("--figure-spp", type=int, default=0, help="their samples per pixel (default: the largest of --spp)")
     ap.add_argument("--quick", action="store_true", help="tau 10 and 30, 32 x 32 pixels, fewer samples")
     a = ap.parse_args()
     if a.quick:
-        a.taus, a.spp, a.ref_spp, a.size = "10,30", "16,64", 256, 32
+        a.taus, a.spp, a.ref_spp, a.size, a.figure_size = "10,30", "16,64", 256, 32, 0
     a.spp = [int(s) for s in a.spp.split(",")]
+    a.figure_spp = a.figure_spp or max(a.spp)
     os.makedirs(a.out, exist_ok=True)
     stf = Stf()
     cache = os.path.join(a.out, "cache")
