@@ -30,7 +30,8 @@ means (relative difference, target within 1%).
 Writes OUT/render_bench.json, OUT/render_images.png (per medium: brute, stf, z of the
 difference) and OUT/render_error_vs_time.png. The pictures are a pair of their own at
 --figure-size pixels and --figure-spp (default: the largest of --spp), seeds 3 and 4, with the
-same pack (0: the timed images at the largest spp). Usage:
+same pack, their largest block z in the JSON (figure_max_block_z); --figure-size 0 draws the
+timed images at the last of --spp instead (as --quick does). Usage:
   bench/render_bench.py [--out DIR] [--taus 10,30,100,300] [--media TAU:ALBEDO:G,...] [--dense]
                         [--spp 16,64,256,1024] [--ref-spp 4096] [--size 64] [--tolerance 0.02]
                         [--figure-size 256] [--figure-spp N] [--quick]
@@ -116,6 +117,7 @@ def run_medium(stf, spec, a, cache, out):
         sm, sv, _ = stf.render(m, radius, a.figure_spp, "stf", os.path.join(out, f"{name}_figure_stf.h5"), seed=4,
                                size=a.figure_size, extra=stf_args)
         z = render_pair.block_z(sm, sv, bm, bv)
+        row["figure_max_block_z"] = float(np.nanmax(np.abs(z)))
     return row, (bm, sm, z)
 
 

@@ -128,6 +128,7 @@ std::vector<double> lobe_cell_probabilities(const std::vector<VmfLobe>& lobes, c
                                             double counts, const OutwardFactors* outward, const BinTurn* turn) {
   const std::vector<double> every_cell(levels.centres().size(), 1.0);
   LobeIntegrator cells(levels, every_cell, outward, turn);
+  cells.keep_tails();
   return cells.probabilities(lobes, counts);
 }
 
@@ -240,10 +241,10 @@ void LobeIntegrator::integrate_lobe(const Vec3& mean, double kappa, PointFactor 
   // The widened lobe depends on the sub-cell's solid angle alone: on an equal-area grid
   // (HEALPix) it is computed once per lobe, not once per point.
   double widened_for = -1, ke = kappa, norm = norm0, dlog = 0, d_ke = 1;
-  double cut_for = -1, min_cosine = -2;  // the 40 e-fold cut below, for the solid angle cut_for
-  // Points beyond 40 e-folds are skipped below; a cell whose every point must be (its centre
+  double cut_for = -1, min_cosine = -2;  // the e-fold cut below, for the solid angle cut_for
+  // Points beyond cut_efolds_ e-folds are skipped below; a cell whose every point must be (its centre
   // farther from the mean than that angle plus the cell's spread) is skipped whole.
-  const double far = 1 - 40 * (1 + kappa * max_sub_cell / 12) / kappa;
+  const double far = 1 - cut_efolds_ * (1 + kappa * max_sub_cell / 12) / kappa;
   const double reach = far > -1 ? std::acos(far) + levels_.spread(level) : kPi;
   const double cos_reach = reach < kPi ? std::cos(reach) : -2.0;
   const std::vector<Vec3>& centre = levels_.centres();
@@ -258,7 +259,7 @@ void LobeIntegrator::integrate_lobe(const Vec3& mean, double kappa, PointFactor 
       if (f <= 0) continue;  // below the tangent plane of every exit point of the bin
       // Beyond 40 e-folds below the peak a point adds nothing a double can hold relative
       // to the lobe's mass (and exp would take its slow underflow path).
-      if (a != cut_for) cut_for = a, min_cosine = 1 - 40 * (1 + kappa * a / 12) / kappa;
+      if (a != cut_for) cut_for = a, min_cosine = 1 - cut_efolds_ * (1 + kappa * a / 12) / kappa;
       if (cosine < min_cosine) continue;
       const int k = batch.n++;
       batch.row[k] = row_of_cell_[c], batch.factor[k] = f, batch.x[k] = &x;

@@ -1,13 +1,15 @@
 // Where fitted direction densities meet a grid's cells: the grid's quadrature levels, the
-// outward factors of hemispherical lobes, and the batched integrator of vMF lobes over the
-// cells with the one rule for bins whose density turns across them. The fit's cost functions
-// (lobe_deviance.h), its held-out scores, `stf eval` and the tolerance certificates integrate
-// lobes here.
+// outward factors of hemispherical lobes, the batched integrator of vMF lobes over the cells
+// with the one rule for bins whose density turns across them, the integral of any density
+// (SH models) and the Poisson deviance of counts against cell probabilities. The fit's cost
+// functions (lobe_deviance.h), its held-out scores, `stf eval` and the tolerance certificates
+// integrate lobes here.
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -68,8 +70,10 @@ class QuadratureLevels {
 
 // Per-cell probabilities of a vMF mixture (weights summing to 1) over every cell of the grid,
 // each lobe integrated by LobeIntegrator as for `counts` escapes (its quadrature level and
-// widening); with `outward`, of hemispherical lobes; with `turn`, averaged over the exit points
-// of a bin whose density turns across it, as the fit sees a turning bin's counts.
+// widening) and with its tails (keep_tails: a cell far from every lobe keeps its small mass, so
+// ratios such as KL and deviances stay finite); with `outward`, of hemispherical lobes; with
+// `turn`, averaged over the exit points of a bin whose density turns across it, as the fit sees
+// a turning bin's counts.
 std::vector<double> lobe_cell_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
                                             double counts = 1e8, const OutwardFactors* outward = nullptr,
                                             const BinTurn* turn = nullptr);
@@ -125,6 +129,10 @@ class LobeIntegrator {
           dm(needed && derivatives ? 3 * std::size_t(rows) : 0, 0.0), marked(needed ? std::size_t(rows) : 0, 0) {}
   };
   CopyScratch make_scratch(bool derivatives) const { return CopyScratch(rows(), derivatives, !nodes_.empty()); }
+
+  // Integrates every point however far below a lobe's peak; by default points beyond 40 e-folds
+  // are skipped, which changes no sum a double holds but leaves far cells at exactly 0.
+  void keep_tails() { cut_efolds_ = std::numeric_limits<double>::infinity(); }
 
   int rows() const { return int(count_.size()); }
   const std::vector<double>& row_counts() const { return count_; }
@@ -198,6 +206,7 @@ class LobeIntegrator {
   double total_ = 0;
   double max_sub_cell_[QuadratureLevels::kMaxLevel + 1] = {};  // the largest sub-cell solid angle per level
   double widen_above_ = 0;  // kappa a / 12 beyond which lobes are widened
+  double cut_efolds_ = 40;  // points farther below a lobe's peak are skipped
 };
 
 }  // namespace stf::fit

@@ -4,7 +4,6 @@
 // over the sphere. The tests' reference for what fit/cell_integral.h integrates faster.
 #pragma once
 
-#include <cmath>
 #include <vector>
 
 #include "grid.h"

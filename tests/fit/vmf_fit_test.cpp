@@ -252,6 +252,25 @@ TEST(VmfFit, CellProbabilitiesOfANarrowLobeSumToOne) {
   }
 }
 
+// The cells far from a lobe keep their small mass (KL and deviances divide by it): the batched
+// integrator agrees with the plain point rule on the points of the level it chose in every cell,
+// the antipode of a kappa 300 lobe (e^-600 of its peak) included.
+TEST(VmfFit, CellProbabilitiesKeepTheTailsOfNarrowLobes) {
+  auto grid = make_grid("healpix:8");
+  const QuadratureLevels levels(*grid);
+  for (double kappa : {0.5, 30.0, 300.0}) {
+    const std::vector<VmfLobe> lobe = {{1, kappa, normalize({1, 2, 3})}};
+    const std::vector<double> p = lobe_cell_probabilities(lobe, levels);
+    const std::vector<double> ref = test::reference_cells(lobe, levels.at(levels.level_for_kappa(kappa)));
+    double worst = 0;
+    for (std::size_t c = 0; c < p.size(); ++c) {
+      ASSERT_GT(ref[c], 0) << kappa << " cell " << c;
+      worst = std::max(worst, std::abs(p[c] / ref[c] - 1));
+    }
+    EXPECT_LT(worst, 1e-9) << kappa;
+  }
+}
+
 TEST(VmfFit, StableDensityAndSamplingAtExtremeKappa) {
   EXPECT_NEAR(vmf_pdf(0.0, 0.3), 1 / (4 * kPi), 1e-15);
   EXPECT_NEAR(vmf_pdf(1e-10, -1.0), (1 - 1e-10) / (4 * kPi), 1e-17);  // (1 + k) e^{-2k} / 4 pi

@@ -173,8 +173,8 @@ class ForeignTables(unittest.TestCase):
         cases = {
             "fortran.npy": (lambda p: np.save(p, np.asfortranarray(counts)), "C order"),
             "shape.npy": (lambda p: np.save(p, counts[:, :-1]), "shape"),
-            "big_endian.npy": (lambda p: np.save(p, counts.astype(">f8")), "little-endian"),
-            "complex.npy": (lambda p: np.save(p, counts.astype("<c16")), "dtype"),
+            "big_endian.npy": (lambda p: np.save(p, counts.astype(">f8")), ">f8"),
+            "complex.npy": (lambda p: np.save(p, counts.astype("<c16")), "<c16"),
             "negative.npy": (lambda p: np.save(p, -counts), "negative"),
             "nan.npy": (lambda p: np.save(p, np.where(counts > 0, np.nan, counts)), "non-finite"),
             "truncated.npy": (lambda p: write_bytes(p, good[:-8]), "values"),
