@@ -19,6 +19,10 @@ namespace stf {
 struct Medium;
 }
 
+namespace stf::fit {
+struct FitSettings;
+}
+
 namespace stf::cli {
 
 // A user error. main() prints it as one line, "stf: error: <message>", and exits with status 2;
@@ -181,6 +185,11 @@ class ProgressBar {
 
 // --sigma-s, --sigma-a, --g (required when `required`) and --radius, into `medium`.
 void add_medium_options(CLI::App& cmd, Medium& medium, bool required);
+
+// --model and --threads of the commands that fit (fit, smooth), and the settings they name:
+// one line and exit 2 where they name none.
+void add_fit_options(CLI::App& cmd, std::string& model, std::string& threads);
+fit::FitSettings fit_settings(const std::string& model, const std::string& threads);
 
 void add_precompute_command(CLI::App& app);
 void add_merge_command(CLI::App& app);

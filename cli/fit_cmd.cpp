@@ -109,13 +109,7 @@ fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, cons
 }
 
 void run_fit(const FitOptions& o, const CLI::App& cmd) {
-  fit::FitSettings settings;
-  try {
-    settings = fit::parse_model_spec(o.model);
-  } catch (const std::invalid_argument& e) {
-    fail(e.what());
-  }
-  settings.threads = int(parse_count(o.threads, "--threads", 0, 4096));
+  fit::FitSettings settings = fit_settings(o.model, o.threads);
   if (o.alpha_degree >= 0 && settings.kind != ModelKind::kSh) fail("--alpha-degree applies to sh models only");
   if (o.alpha_degree < -1 || o.alpha_degree > 64) fail("--alpha-degree must be in 0..64 (or -1: off)");
   if (cmd.count("--tolerance") && !(o.tolerance > 0 && o.tolerance < 1))
@@ -142,7 +136,7 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
   if (std::string why = fit::settings_error(table, settings); !why.empty()) fail(o.table + ": " + why);
   if (cmd.count("--tolerance") && table.halves == Halves::kEven)
     fail(o.table + ": --tolerance chooses on held-out halves, which a table of weights without /escape/weight_half lacks");
-  if (pack_out && !table.has_medium)
+  if (pack_out && !table.has_medium())
     fail(o.table + " names no medium, and a pack needs one (tau, albedo, g): import the histogram with --sigma-s, --sigma-a and --g");
   settings.cancel = &interrupted;
   fit::FitReport report;
@@ -228,15 +222,31 @@ void run_eval(const EvalOptions& o) {
 
 }  // namespace
 
+void add_fit_options(CLI::App& cmd, std::string& model, std::string& threads) {
+  cmd.add_option("--model", model, "auto (what scenes and render use: hvmf:auto), vmf:K, vmf:auto, hvmf:K, hvmf:auto, sh:L or sh:auto")
+      ->capture_default_str();
+  cmd.add_option("--threads", threads, "Worker threads (0: all cores)")->capture_default_str();
+}
+
+fit::FitSettings fit_settings(const std::string& model, const std::string& threads) {
+  fit::FitSettings settings;
+  try {
+    settings = fit::parse_model_spec(model);
+  } catch (const std::invalid_argument& e) {
+    fail(e.what());
+  }
+  settings.threads = int(parse_count(threads, "--threads", 0, 4096));
+  return settings;
+}
+
 void add_fit_command(CLI::App& app) {
   auto o = std::make_shared<FitOptions>();
   CLI::App* cmd = app.add_subcommand("fit", "Fit a raw table with vMF lobes or smoothed spherical harmonics");
   cmd->add_option("table", o->table, "Raw table (HDF5)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--model", o->model, "auto (what scenes and render use: hvmf:auto), vmf:K, vmf:auto, hvmf:K, hvmf:auto, sh:L or sh:auto (default auto)");
+  add_fit_options(*cmd, o->model, o->threads);
   cmd->add_option("-o,--output", o->output, "Output model (HDF5)")->required();
   cmd->add_option("--report", o->report, "Per-bin diagnostics and model selection as JSON");
   cmd->add_option("--pack", o->pack, "Also write the model as a binary pack for the sampler");
-  cmd->add_option("--threads", o->threads, "Worker threads (0: all cores)")->capture_default_str();
   cmd->add_option("--alpha-degree", o->alpha_degree,
                   "sh: store each coefficient as a Chebyshev series of this degree in cos(alpha)")
       ->capture_default_str();

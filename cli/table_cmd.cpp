@@ -87,13 +87,7 @@ std::string chosen_spec(const StfModel& m, const fit::FitReport& r) {
 }
 
 void run_smooth(const SmoothOptions& o) {
-  fit::FitSettings settings;
-  try {
-    settings = fit::parse_model_spec(o.model);
-  } catch (const std::invalid_argument& e) {
-    fail(e.what());
-  }
-  settings.threads = int(parse_count(o.threads, "--threads", 0, 4096));
+  fit::FitSettings settings = fit_settings(o.model, o.threads);
   AtomicOutput out(o.output, "-o", {{o.table, "the table"}});
   const Table table = read_table(o.table);
   if (std::string why = fit::settings_error(table, settings); !why.empty()) fail(o.table + ": " + why);
@@ -138,9 +132,7 @@ void add_smooth_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("smooth", "A table into its fitted model's expected weights, in the table's layout");
   cmd->add_option("table", o->table, "Table (HDF5): stf's, or any file with the four datasets")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", o->output, "Smoothed table (HDF5)")->required();
-  cmd->add_option("--model", o->model, "auto (hvmf:auto), vmf:K, vmf:auto, hvmf:K, hvmf:auto, sh:L or sh:auto")
-      ->capture_default_str();
-  cmd->add_option("--threads", o->threads, "Worker threads (0: all cores)")->capture_default_str();
+  add_fit_options(*cmd, o->model, o->threads);
   cmd->add_flag("--quiet", o->quiet, "No summary line");
   cmd->callback([o] { run_smooth(*o); });
 }

@@ -76,7 +76,7 @@ std::string table_file(const Table& t) {
     H5::H5File& file = memory.file();
     put_attr(file, "format", std::string(kTableFormat));
     put_attr(file, "format_version", kTableFormatVersion);
-    put_medium(file, t.medium);
+    if (t.has_medium()) put_medium(file, t.medium);  // a table of no medium names none
     put_attr(file, "paths", t.paths);
     put_attr(file, "seed", t.seed);
     put_attr(file, "max_scatter", t.max_scatter);
@@ -163,7 +163,7 @@ std::string multiple_sub_error(const Table& t) {
 
 std::string table_error(const Table& t) {
   const Medium& m = t.medium;
-  if (t.has_medium && !(std::isfinite(m.sigma_s) && std::isfinite(m.sigma_a) && m.sigma_s >= 0 && m.sigma_a >= 0 &&
+  if (t.has_medium() && !(std::isfinite(m.sigma_s) && std::isfinite(m.sigma_a) && m.sigma_s >= 0 && m.sigma_a >= 0 &&
                         m.sigma_t() > 0 && std::isfinite(m.radius) && m.radius > 0 && m.g > -1 && m.g < 1))
     return "medium attributes out of range (sigma_s, sigma_a >= 0 and not both 0, radius > 0, g in (-1, 1))";
   if (t.paths < 1 || t.alpha_bins < 1 || t.cells < 1) return "paths, alpha bins and cells must be at least 1";

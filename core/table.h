@@ -2,6 +2,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <string>
@@ -31,7 +32,7 @@ struct Table {
   Medium medium;
   // False for a table that names no medium (a histogram stf did not make): the medium's values
   // are NaN, and its model carries none.
-  bool has_medium = true;
+  bool has_medium() const { return !std::isnan(medium.sigma_s); }
   Halves halves = Halves::kTallied;
   // True when the singular parts (uncollided_half, once) hold their expected counts from the
   // medium rather than the walk's tallies (fit/expected_singular.h).

@@ -39,7 +39,6 @@ void read_medium(const H5::H5File& file, Table& t) {
   } else {
     const double none = std::nan("");
     t.medium = {none, none, none, none};
-    t.has_medium = false;
   }
 }
 
@@ -75,10 +74,11 @@ void read_header(const H5::H5File& file, Table& t) {
 // Without `paths` every path escaped (the weights' sum, rounded up to a whole number); without
 // the escaped and absorbed weights, they follow from the escapes and the paths.
 void settle_totals(Table& t) {
-  double escaped = 0;
-  for (const auto& half : t.weight_half)
-    for (double w : half) escaped += w;
-  if (t.escaped_weight < 0) t.escaped_weight = escaped;
+  if (t.escaped_weight < 0) {
+    t.escaped_weight = 0;
+    for (const auto& half : t.weight_half)
+      for (double w : half) t.escaped_weight += w;
+  }
   if (t.paths < 0)
     t.paths = std::max<std::int64_t>(1, std::int64_t(std::ceil((t.escaped_weight + std::max(0.0, t.absorbed_weight) +
                                                                 t.truncated_weight) * (1 - 1e-15))));

@@ -125,10 +125,11 @@ OutwardFactors outward_cell_means(const QuadratureLevels& levels, double a0, dou
 }
 
 std::vector<double> lobe_cell_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
-                                            double counts, const OutwardFactors* outward, const BinTurn* turn) {
+                                            double counts, const OutwardFactors* outward, const BinTurn* turn,
+                                            Tails tails) {
   const std::vector<double> every_cell(levels.centres().size(), 1.0);
   LobeIntegrator cells(levels, every_cell, outward, turn);
-  cells.keep_tails();
+  if (tails == Tails::kKeep) cells.keep_tails();
   return cells.probabilities(lobes, counts);
 }
 

@@ -68,15 +68,18 @@ class QuadratureLevels {
   double cell_solid_angle_;  // the largest cell's
 };
 
+// Whether cells far from every lobe keep their small mass (LobeIntegrator::keep_tails): where
+// ratios of cell probabilities are taken (KL, deviances, chi^2), not where they are mixed with a
+// floor far above it (held-out scores).
+enum class Tails { kKeep, kCut };
+
 // Per-cell probabilities of a vMF mixture (weights summing to 1) over every cell of the grid,
 // each lobe integrated by LobeIntegrator as for `counts` escapes (its quadrature level and
-// widening) and with its tails (keep_tails: a cell far from every lobe keeps its small mass, so
-// ratios such as KL and deviances stay finite); with `outward`, of hemispherical lobes; with
-// `turn`, averaged over the exit points of a bin whose density turns across it, as the fit sees
-// a turning bin's counts.
+// widening); with `outward`, of hemispherical lobes; with `turn`, averaged over the exit points
+// of a bin whose density turns across it, as the fit sees a turning bin's counts.
 std::vector<double> lobe_cell_probabilities(const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
                                             double counts = 1e8, const OutwardFactors* outward = nullptr,
-                                            const BinTurn* turn = nullptr);
+                                            const BinTurn* turn = nullptr, Tails tails = Tails::kKeep);
 
 // Per-cell probabilities of a density per steradian (an SH model's) by the points of quadrature
 // `q`, normalised to sum to 1 (all zero if the density vanishes everywhere).

@@ -17,7 +17,7 @@ Table with_expected_singular_parts(const Table& t) {
   e.singular_expected = true;
   const std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
   const std::size_t pole = std::size_t(grid->cell({0, 0, 1}));
-  if (!t.has_medium) {
+  if (!t.has_medium()) {
     for (int h = 0; h < 2; ++h) e.uncollided_half[h] = t.weight_half[h][pole];
     return e;
   }
@@ -40,7 +40,7 @@ Table with_expected_singular_parts(const Table& t) {
 }
 
 std::string singular_parts_source(const Table& t) {
-  if (t.singular_expected) return t.has_medium ? "expected from the medium" : "none but bin 0's cell of +z as the uncollided part";
+  if (t.singular_expected) return t.has_medium() ? "expected from the medium" : "none but bin 0's cell of +z as the uncollided part";
   return stages::singular_parts_exact(t) ? "tallied" : "none";
 }
 

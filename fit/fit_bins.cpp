@@ -170,21 +170,19 @@ BinFits fit_bins(const Escapes& e, const Pass& pass, const QuadratureLevels& lev
 }
 
 std::vector<double> lobe_cells(const BinFits& fits, const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
-                               double escapes, double a0, double a1) {
-  if (!fits.hemispherical) return lobe_cell_probabilities(lobes, levels, escapes);
-  const OutwardFactors outward = outward_factors(levels, a0, a1);
-  return lobe_cell_probabilities(lobes, levels, escapes, &outward);
+                               double escapes, const BinTurn& bin, Tails tails) {
+  const OutwardFactors outward = fits.hemispherical ? outward_factors(levels, bin.a0, bin.a1) : OutwardFactors{};
+  return lobe_cell_probabilities(lobes, levels, escapes, fits.hemispherical ? &outward : nullptr,
+                                 bin.rate != 0 ? &bin : nullptr, tails);
 }
 
 std::vector<double> bin_probabilities(const BinFits& fits, int b, const ShSmoothing& t, const QuadratureLevels& levels,
-                                      const std::vector<double>& sh_basis) {
+                                      const std::vector<double>& sh_basis, Tails tails) {
   if (fits.kind == ModelKind::kVmf) {
-    const double escapes = both_halves(*fits.table, b);
     const std::vector<double>& edges = fits.table->alpha_edges;
-    const double a0 = edges[std::size_t(b)], a1 = edges[std::size_t(b) + 1];
-    const OutwardFactors outward = fits.hemispherical ? outward_factors(levels, a0, a1) : OutwardFactors{};
-    return lobe_cell_probabilities(fits.lobes[b], levels, escapes, fits.hemispherical ? &outward : nullptr,
-                                   fits.turns.empty() ? nullptr : &fits.turns[std::size_t(b)]);
+    const BinTurn bin = fits.turns.empty() ? BinTurn{0, edges[std::size_t(b)], edges[std::size_t(b) + 1], 0}
+                                           : fits.turns[std::size_t(b)];
+    return lobe_cells(fits, fits.lobes[b], levels, both_halves(*fits.table, b), bin, tails);
   }
   std::vector<double> c = fits.sh[b];
   smooth_sh(c, fits.size, t);

@@ -16,8 +16,9 @@ TurnedNeighbours turned_neighbours(const BinFits& fits, const std::vector<BinTur
       const double angle = turns[std::size_t(j)].rate * (middle(b) - middle(j));
       std::vector<VmfLobe> lobes = fits.lobes[std::size_t(j)];
       for (VmfLobe& l : lobes) l.mean = turn_about_y(l.mean, angle);
-      n.cells[std::size_t(b)][std::size_t(j - b + width)] = lobe_cells(
-          fits, lobes, levels, both_halves(t, j), edges[std::size_t(j)] + angle, edges[std::size_t(j) + 1] + angle);
+      const BinTurn moved{0, edges[std::size_t(j)] + angle, edges[std::size_t(j) + 1] + angle, 0};
+      n.cells[std::size_t(b)][std::size_t(j - b + width)] =
+          lobe_cells(fits, lobes, levels, both_halves(t, j), moved, Tails::kCut);
     }
   });
   return n;

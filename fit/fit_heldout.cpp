@@ -62,7 +62,7 @@ SizeTrial heldout_for_size(const Escapes& e, const FitSettings& s, Pass pass, co
   for (const ShSmoothing& smoothing : s.kind == ModelKind::kSh ? sh_smoothings() : std::vector<ShSmoothing>{{}}) {
     std::vector<std::vector<double>> p(t.alpha_bins);
     for_each_bin(t.alpha_bins, s,
-                 [&](int b) { p[b] = bin_probabilities(trial.fits, b, smoothing, levels, basis); });
+                 [&](int b) { p[b] = bin_probabilities(trial.fits, b, smoothing, levels, basis, Tails::kCut); });
     if (cancelled(s)) return {};  // some bins were skipped
     HeldOut h = score(e, 1, p);
     if (trial.score.log_p.empty() || h.nll < trial.score.nll) trial.score = std::move(h), trial.smoothing = smoothing;

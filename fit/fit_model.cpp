@@ -91,7 +91,7 @@ void diagnose(const BinFits& fits, const FitSettings& s, const StfModel& m, cons
     }
     if (d.escapes <= 0 || m.status[std::size_t(b)] != BinStatus::kFitted) return;
     std::vector<double> p = s.kind == ModelKind::kVmf
-                                ? bin_probabilities(fits, b, {}, levels, {})
+                                ? bin_probabilities(fits, b, {}, levels, {}, Tails::kKeep)
                                 : density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, w); },
                                                              levels.at(2));
     d.deviance = poisson_deviance(counts, p);

@@ -205,14 +205,14 @@ struct Pass {
 // Fits every bin of `s.kind` for the pass; bins with too few escapes borrow a neighbour's.
 BinFits fit_bins(const Escapes& e, const Pass& pass, const QuadratureLevels& levels, const FitSettings& s);
 
-// Cell probabilities of vMF lobes of `fits`' kind in a bin of edges [a0, a1] that stands still:
-// hemispherical lobes times the edges' outward factor.
+// Cell probabilities of vMF lobes of `fits`' kind in a bin with the edges and turn of `bin`
+// (rate 0: it stands still): hemispherical lobes times the edges' outward factor.
 std::vector<double> lobe_cells(const BinFits& fits, const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
-                               double escapes, double a0, double a1);
+                               double escapes, const BinTurn& bin, Tails tails);
 
 // Cell probabilities of bin b under fitted parameters (vMF, or clamped smoothed SH).
 std::vector<double> bin_probabilities(const BinFits& fits, int b, const ShSmoothing& t, const QuadratureLevels& levels,
-                                      const std::vector<double>& sh_basis);
+                                      const std::vector<double>& sh_basis, Tails tails);
 
 // Held-out negative log-likelihood of half `half` under probabilities per bin, with p mixed
 // 1e-6 with the uniform density so that a cell the model calls empty costs a finite amount.

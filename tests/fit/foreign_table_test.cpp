@@ -32,7 +32,6 @@ Table foreign(const Table& walked, bool medium) {
   if (!medium) {
     const double none = std::nan("");
     t.medium = {none, none, none, none};
-    t.has_medium = false;
   }
   return t;
 }

@@ -113,7 +113,7 @@ TEST(MinimalTable, FourDatasetsAloneReadAsATable) {
   EXPECT_EQ(t.paths, std::int64_t(total));
   EXPECT_EQ(t.escaped_weight, total);
   EXPECT_EQ(t.absorbed_weight, 0);
-  EXPECT_FALSE(t.has_medium);
+  EXPECT_FALSE(t.has_medium());
   EXPECT_EQ(t.halves, Halves::kThinned);
   EXPECT_EQ(t.weight(), weight);
 }
