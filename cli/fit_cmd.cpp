@@ -37,7 +37,7 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
   s << "{\n  \"model\": \"" << spec << "\", \"chosen_size\": " << r.chosen_size << ", \"smoothing\": " << r.smoothing
     << ", \"window\": \"" << (r.lanczos_window ? "lanczos" : "none") << "\""
     << ", \"alpha_penalty\": " << r.alpha_penalty << ", \"singular_parts\": \"" << r.singular_parts << "\", \"heldout_halves\": \"" << r.heldout_halves << "\""
-    << ", \"family\": \"" << (m.kind == ModelKind::kSh ? "sh" : m.hemispherical ? "hvmf" : "vmf") << "\"";
+    << ", \"family\": \"" << m.family() << "\"";
   if (!r.blend_heldout_nll.empty()) {
     s << ", \"alpha_blend\": " << m.alpha_blend << ", \"blend_heldout_nll\": [";
     for (std::size_t i = 0; i < r.blend_heldout_nll.size(); ++i) s << (i ? ", " : "") << r.blend_heldout_nll[i];

@@ -2,7 +2,6 @@
 // model's expected weights, in the table's own layout (docs/formats.md, "Tables stf did not make").
 #include <CLI/CLI.hpp>
 
-#include <cmath>
 #include <cstdio>
 #include <memory>
 
@@ -83,7 +82,7 @@ struct SmoothOptions {
 };
 
 std::string chosen_spec(const StfModel& m, const fit::FitReport& r) {
-  return std::string(m.kind == ModelKind::kSh ? "sh" : m.hemispherical ? "hvmf" : "vmf") + ":" + std::to_string(r.chosen_size);
+  return std::string(m.family()) + ":" + std::to_string(r.chosen_size);
 }
 
 void run_smooth(const SmoothOptions& o) {

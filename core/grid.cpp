@@ -56,9 +56,9 @@ GridSpec parse_grid(const std::string& spec) {
   if (colon == std::string::npos || (kind != "csc" && kind != "healpix"))
     throw std::invalid_argument("--grid '" + spec + "' is not valid: expected csc:N or healpix:NSIDE");
   int value = parse_positive(spec.substr(colon + 1), spec);
-  if (kind == "csc" && value > kMaxCubeN) throw std::invalid_argument("--grid csc:N allows 1 <= N <= 1024, got " + spec);
+  if (kind == "csc" && value > kMaxCubeN) throw std::invalid_argument("--grid csc:N allows 1 <= N <= " + std::to_string(kMaxCubeN) + ", got " + spec);
   if (kind == "healpix" && (value > kMaxNside || (value & (value - 1)) != 0))
-    throw std::invalid_argument("--grid healpix:NSIDE needs a power of two 1..2048, got " + spec);
+    throw std::invalid_argument("--grid healpix:NSIDE needs a power of two 1.." + std::to_string(kMaxNside) + ", got " + spec);
   return {kind == "csc", value};
 }
 

@@ -45,7 +45,7 @@ class DirectionGrid {
   virtual std::vector<std::int64_t> parents(int levels) const = 0;
 };
 
-// Parses "csc:N" (1 <= N <= 1024) or "healpix:NSIDE" (a power of two, 1 <= NSIDE <= 8192).
+// Parses "csc:N" (1 <= N <= kMaxCubeN) or "healpix:NSIDE" (a power of two, 1 <= NSIDE <= kMaxNside).
 // Throws std::invalid_argument with a message naming what is allowed.
 std::unique_ptr<DirectionGrid> make_grid(const std::string& spec);
 // The finest grids stf makes: HEALPix NSIDE and the cube's N.

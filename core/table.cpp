@@ -2,12 +2,10 @@
 
 #include <H5Cpp.h>
 
-#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
 #include "files.h"
-#include "grid.h"
 #include "h5io.h"
 #include "minimal_table.h"
 #include "stf/vec3.h"

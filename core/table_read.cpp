@@ -8,7 +8,6 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "grid.h"
 #include "h5io.h"
 #include "minimal_table.h"
 

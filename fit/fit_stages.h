@@ -13,11 +13,8 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
-#include <atomic>
-#include <chrono>
 #include <cmath>
 #include <stdexcept>
-#include <thread>
 
 #include "alpha_marginal.h"
 #include "alpha_tilt.h"

@@ -257,7 +257,7 @@ StfModel read_model(const std::string& path) {
 ModelSummary read_model_summary(const std::string& path) {
   StfModel m = read_model(path);
   ModelSummary s;
-  s.kind = m.kind == ModelKind::kSh ? "sh" : m.hemispherical ? "hvmf" : "vmf";
+  s.kind = m.family();
   s.size = m.kind == ModelKind::kVmf ? m.lobes : m.band_limit;
   s.alpha_bins = m.bins();
   s.bytes = m.packed_bytes();

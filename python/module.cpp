@@ -322,11 +322,7 @@ void add_model(py::module_& m) {
       .def_property_readonly("alpha_probability",
                              [](const Model& s) { return array_of(s.model().alpha_probability); })
       .def_property_readonly("family",
-                             [](const Model& s) {
-                               return s.model().kind == stf::ModelKind::kSh ? "sh"
-                                      : s.model().hemispherical             ? "hvmf"
-                                                                            : "vmf";
-                             })
+                             [](const Model& s) { return s.model().family(); })
       .def_property_readonly("size",
                              [](const Model& s) {
                                return s.model().kind == stf::ModelKind::kSh ? s.model().band_limit

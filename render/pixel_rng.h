@@ -4,7 +4,7 @@
 
 #include <cstdint>
 
-#include "rng.h"  // precompute/: splitmix64
+#include "rng.h"  // core/: splitmix64
 
 namespace stf::render {
 

@@ -78,6 +78,8 @@ struct StfModel {
   // outward cosine (stf/hemisphere.h) and renormalised by lobe_norm, its integral, which
   // rebuild_lobe_norms() derives.
   bool hemispherical = false;
+  // The family's name in model specs: "vmf", "hvmf" or "sh".
+  const char* family() const { return kind == ModelKind::kSh ? "sh" : hemispherical ? "hvmf" : "vmf"; }
   std::vector<double> lobe_norm;  // [bins * lobes]
 
   // kSh: real SH coefficients per bin, [bins * (band_limit + 1)^2], windowed and smoothed.
