@@ -52,13 +52,25 @@ struct FitSettings {
 // naming --model and what is allowed.
 FitSettings parse_model_spec(const std::string& spec);
 
-// The mechanisms the fit can be run without, by name (stf fit --ablate, for bench/ablation.py):
-// mirror, pooling, wide-pools, alpha-smoothing, tilt, turn, blend, blend-by-bin.
-inline constexpr const char* kAblations[] = {"mirror", "pooling", "wide-pools", "alpha-smoothing",
-                                             "tilt", "turn", "blend", "blend-by-bin"};
+// The mechanisms the fit can be run without (stf fit --ablate, for bench/ablation.py), each with
+// the setting that turns it off.
+struct Ablation {
+  const char* name;
+  void (*off)(FitSettings&);
+};
+inline constexpr Ablation kAblations[] = {
+    {"mirror", [](FitSettings& s) { s.fold_mirror = false; }},
+    {"pooling", [](FitSettings& s) { s.pool_neighbours = false; }},
+    {"wide-pools", [](FitSettings& s) { s.wide_pools = false; }},
+    {"alpha-smoothing", [](FitSettings& s) { s.smooth_alpha = false; }},
+    {"tilt", [](FitSettings& s) { s.tilt = false; }},
+    {"turn", [](FitSettings& s) { s.turn = false; }},
+    {"blend", [](FitSettings& s) { s.max_blend = 0; }},
+    {"blend-by-bin", [](FitSettings& s) { s.blend_by_bin = false; }},
+};
 
 // Turns off the mechanisms named in `list` (comma separated, from kAblations). Throws
-// std::invalid_argument naming --ablate and what is allowed.
+// std::invalid_argument naming --ablate, what is allowed and the name it did not know.
 void ablate(FitSettings& settings, const std::string& list);
 
 // A triangle in the distance d (bins): the nearest neighbours of width 1 count 1/2.

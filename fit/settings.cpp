@@ -32,20 +32,16 @@ FitSettings parse_model_spec(const std::string& spec) {
 
 void ablate(FitSettings& s, const std::string& list) {
   std::string allowed;
-  for (const char* name : kAblations) allowed += std::string(allowed.empty() ? "" : ", ") + name;
+  for (const Ablation& a : kAblations) allowed += std::string(allowed.empty() ? "" : ", ") + a.name;
   for (std::size_t at = 0; at <= list.size();) {
     const std::size_t comma = std::min(list.find(',', at), list.size());
     const std::string name = list.substr(at, comma - at);
     at = comma + 1;
-    if (name == "mirror") s.fold_mirror = false;
-    else if (name == "pooling") s.pool_neighbours = false;
-    else if (name == "wide-pools") s.wide_pools = false;
-    else if (name == "alpha-smoothing") s.smooth_alpha = false;
-    else if (name == "tilt") s.tilt = false;
-    else if (name == "turn") s.turn = false;
-    else if (name == "blend") s.max_blend = 0;
-    else if (name == "blend-by-bin") s.blend_by_bin = false;
-    else throw std::invalid_argument("--ablate takes a comma-separated list of " + allowed + ", got '" + name + "'");
+    const auto known = std::find_if(std::begin(kAblations), std::end(kAblations),
+                                    [&](const Ablation& a) { return name == a.name; });
+    if (known == std::end(kAblations))
+      throw std::invalid_argument("--ablate takes a comma-separated list of " + allowed + ", got '" + name + "'");
+    known->off(s);
   }
 }
 

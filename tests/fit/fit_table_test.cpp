@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -593,6 +594,16 @@ TEST(Evaluate, FittedModelBeatsItsRawTable) {
   }
 }
 
+// A model of one narrow lobe per bin (tau 2, g 0.97) gives every cell some probability, however
+// far from the lobe, so its KL against a table with escapes in those cells is finite.
+TEST(Evaluate, NarrowLobesKeepAFiniteKl) {
+  const Medium m{1.9, 0.1, 0.97, 1};
+  const StfModel model = fit_table(make_table(m, 100000, "healpix:8", 30, 1), parse_model_spec("vmf:1"));
+  const Evaluation e = evaluate(model, make_table(m, 300000, "healpix:8", 30, 2));
+  EXPECT_TRUE(std::isfinite(e.kl)) << e.kl;
+  EXPECT_GT(e.kl, 0);
+}
+
 TEST(Evaluate, RejectsMismatchedBins) {
   Table a = make_table({1, 0, 0, 1}, 1000, "healpix:2", 9), b = make_table({1, 0, 0, 1}, 1000, "healpix:2", 10);
   EXPECT_THROW(evaluate(a, b), std::invalid_argument);
@@ -686,6 +697,55 @@ TEST(FitTable, AcrossAlphaChebyshevIsExactForPolynomials) {
   ASSERT_EQ(m.sh_chebyshev.size(), std::size_t(4 * count));
   for (std::size_t i = 0; i < original.size(); ++i) EXPECT_NEAR(m.sh[i], original[i], 1e-12);
   EXPECT_LT(m.packed_bytes(), 128 + bins * 8 + 13 * 4 + 4 * count * 4 + 1);
+}
+
+// Each name --ablate takes turns off its own mechanism and no other: of the eight switches, the
+// ablated settings differ from hvmf:auto's in exactly one, a different one for every name.
+TEST(FitSettings, EachAblationTurnsOffItsOwnMechanism) {
+  const auto switches = [](const FitSettings& s) {
+    return std::vector<bool>{s.fold_mirror, s.pool_neighbours, s.wide_pools, s.smooth_alpha,
+                             s.tilt,        s.turn,            s.max_blend > 0, s.blend_by_bin};
+  };
+  const FitSettings all = parse_model_spec("hvmf:auto");
+  ASSERT_EQ(switches(all), std::vector<bool>(8, true));
+  std::vector<int> times_off(8, 0);
+  for (const Ablation& a : kAblations) {
+    FitSettings s = all;
+    ablate(s, a.name);
+    const std::vector<bool> on = switches(s);
+    EXPECT_EQ(std::count(on.begin(), on.end(), false), 1) << a.name;
+    for (std::size_t i = 0; i < on.size(); ++i) times_off[i] += !on[i];
+  }
+  EXPECT_EQ(times_off, std::vector<int>(8, 1));
+  FitSettings s = all;
+  try {
+    ablate(s, "turn,spin");
+    ADD_FAILURE() << "an unknown name was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("'spin'"), std::string::npos) << e.what();
+  }
+}
+
+// The mechanisms fire where the study found them worth their place (docs/studies/
+// 2026-12-ablation.md): on the thin forward medium (tau 1, g 0.9, albedo 0.95; 1e5 paths, seed 2,
+// healpix:16 x 45 bins, as bench/fit_regression.py) hvmf:auto turns its bins at about the rate of
+// the headings (1.66 from a 3e7-path table), pools every bin (sloped and wide pools both chosen),
+// and blends, narrower near the axis than far from it. How much each buys is the bench's.
+TEST(FitTable, MechanismsFireOnAThinForwardMedium) {
+  const Table t = make_table({0.95, 0.05, 0.9, 1}, 100000, "healpix:16", 45, 2);
+  FitReport r;
+  const StfModel m = fit_table(t, parse_model_spec("hvmf:auto"), &r);
+  ASSERT_EQ(m.alpha_turn.size(), 45u);
+  for (int b = 0; b < 5; ++b) {
+    EXPECT_GT(m.alpha_turn[std::size_t(b)], 1.2) << b;
+    EXPECT_LT(m.alpha_turn[std::size_t(b)], 1.8) << b;
+  }
+  int sloped = 0, wide = 0;
+  for (const PoolTry& p : r.pools) sloped += p.sloped, wide += p.width > 1 && !p.sloped;
+  EXPECT_GT(sloped, 0);
+  EXPECT_GT(wide, 0);
+  EXPECT_GT(m.alpha_blend, 0);
+  EXPECT_LT(m.blend_width(0), m.blend_width(20));
 }
 
 TEST(FitTable, ParsesModelSpecs) {

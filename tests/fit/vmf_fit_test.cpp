@@ -267,7 +267,7 @@ TEST(VmfFit, CellProbabilitiesKeepTheTailsOfNarrowLobes) {
       ASSERT_GT(ref[c], 0) << kappa << " cell " << c;
       worst = std::max(worst, std::abs(p[c] / ref[c] - 1));
     }
-    EXPECT_LT(worst, 1e-9) << kappa;
+    EXPECT_LT(worst, 1e-12) << kappa;
   }
 }
 

@@ -21,8 +21,8 @@ namespace {
 // Each count n of a Poisson(lambda) table splits into halves that are independent
 // Poisson(lambda / 2): over many cells, their mean and variance are lambda / 2 and their
 // correlation 0, within 4 standard errors (the statistics of m cells: the mean's standard error
-// sqrt(lambda / 2 / m), the variance's about lambda / 2 sqrt(2 / m) for lambda of tens, the
-// correlation's 1 / sqrt(m)).
+// sqrt(lambda / 2 / m), the sample variance's sqrt(mu (1 + 2 mu) / m) for Poisson(mu = lambda / 2)
+// (its fourth central moment less the squared variance, over m), the correlation's 1 / sqrt(m)).
 TEST(MinimalTable, ThinnedHalvesOfPoissonCountsAreIndependentPoissonHalves) {
   const std::uint64_t seed = test::test_seed(31);
   SCOPED_TRACE(test::seed_trace(seed));
@@ -46,7 +46,7 @@ TEST(MinimalTable, ThinnedHalvesOfPoissonCountsAreIndependentPoissonHalves) {
     for (int h = 0; h < 2; ++h) {
       const double variance = square[h] - mean[h] * mean[h];
       EXPECT_NEAR(mean[h], lambda / 2, 4 * std::sqrt(lambda / 2 / m)) << "lambda " << lambda;
-      EXPECT_NEAR(variance, lambda / 2, 4 * std::sqrt(lambda / 2 * (1 + lambda) * 2 / m)) << "lambda " << lambda;
+      EXPECT_NEAR(variance, lambda / 2, 4 * std::sqrt(lambda / 2 * (1 + lambda) / m)) << "lambda " << lambda;
     }
     const double correlation = (cross - mean[0] * mean[1]) /
                                std::sqrt((square[0] - mean[0] * mean[0]) * (square[1] - mean[1] * mean[1]));
@@ -57,6 +57,7 @@ TEST(MinimalTable, ThinnedHalvesOfPoissonCountsAreIndependentPoissonHalves) {
 // Binomial(n, 1/2) of large counts: mean n / 2 and variance n / 4 over many draws.
 TEST(MinimalTable, BinomialHalfOfLargeCounts) {
   std::uint64_t state = test::test_seed(7);
+  SCOPED_TRACE(test::seed_trace(state));
   const std::uint64_t n = 1001;
   const int draws = 20000;
   double mean = 0, square = 0;
