@@ -30,8 +30,7 @@ void widened_norm(double kappa, double& norm, double& dlog) {
   dlog = 1 / kappa - 2 * e / (1 - e);
 }
 
-}  // namespace
-
+// The centre of cell c: the normalised mean of its quadrature points.
 Vec3 cell_centre(const CellQuadrature& q, std::size_t c) {
   Vec3 s{0, 0, 0};
   for (int j = 0; j < q.per_cell; ++j) {
@@ -41,6 +40,8 @@ Vec3 cell_centre(const CellQuadrature& q, std::size_t c) {
   }
   return normalize(s);
 }
+
+}  // namespace
 
 QuadratureLevels::QuadratureLevels(const DirectionGrid& grid) {
   for (int level = 0; level <= kMaxLevel; ++level) levels_.push_back(grid.quadrature(level));

@@ -30,9 +30,6 @@ struct BinTurn {
   double rate = 0, a0 = 0, a1 = 0, tilt = 0;
 };
 
-// The centre of cell c: the normalised mean of its quadrature points.
-Vec3 cell_centre(const CellQuadrature& q, std::size_t c);
-
 // Cell quadratures of one grid at levels 0 .. kMaxLevel, built once per table.
 class QuadratureLevels {
  public:

@@ -56,7 +56,7 @@ void em_on_cells(const std::vector<double>& counts, const std::vector<Vec3>& cen
 
 }  // namespace
 
-std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const CellQuadrature& q, int K) {
+std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const std::vector<Vec3>& centre, int K) {
   const std::size_t cells = counts.size();
   // Counts at cell centres resolve no lobe narrower than a cell: a cluster of one cell has a
   // resultant of 1 and would start as a point lobe (kappa at the cap) that the binned
@@ -64,8 +64,6 @@ std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const Cell
   // fit the rest around it. Start lobes are at most as narrow as one mean cell (2 pi / kappa
   // = 4 pi / cells); the likelihood stage narrows them where the data ask for it.
   const double resolved = std::min(kMaxStartKappa, 0.5 * double(cells));
-  std::vector<Vec3> centre(cells);
-  for (std::size_t c = 0; c < cells; ++c) centre[c] = cell_centre(q, c);
   // Seeds: the fullest cell, then farthest-first weighted by counts.
   std::vector<Vec3> mean;
   mean.push_back(centre[std::max_element(counts.begin(), counts.end()) - counts.begin()]);
@@ -221,7 +219,7 @@ VmfFitResult fit_vmf_from(const std::vector<double>& counts, const QuadratureLev
 
 VmfFitResult fit_vmf(const std::vector<double>& counts, const QuadratureLevels& levels, int K,
                      const VmfFitOptions& options) {
-  if (!options.outward) return solve(counts, levels, initial_lobes(counts, levels.at(0), K), options);
+  if (!options.outward) return solve(counts, levels, initial_lobes(counts, levels.centres(), K), options);
   // Hemispherical lobes have more poor local optima than plain ones: K lobes grow from a fit of
   // half as many (the heaviest split), down to two from k-means.
   if (K > 2) return solve(counts, levels, grow_lobes(fit_vmf(counts, levels, (K + 1) / 2, options).lobes, K), options);
@@ -231,7 +229,7 @@ VmfFitResult fit_vmf(const std::vector<double>& counts, const QuadratureLevels& 
   std::vector<double> lobe_counts(counts);
   const std::vector<double>& factor = (*options.outward)[0];
   for (std::size_t c = 0; c < lobe_counts.size(); ++c) lobe_counts[c] = factor[c] > 0 ? counts[c] / std::max(factor[c], 0.1) : 0.0;
-  return solve(counts, levels, initial_lobes(lobe_counts, levels.at(0), K), options);
+  return solve(counts, levels, initial_lobes(lobe_counts, levels.centres(), K), options);
 }
 
 }  // namespace stf::fit
