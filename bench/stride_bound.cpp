@@ -7,10 +7,13 @@
 //   brute collisions / (shell collisions + c strides),
 // at most brute / shell for free strides. Reported per optical radius tau and smallest sphere
 // (spheres from it up by a constant ratio: 2, as `stf render` packs them, sqrt 2, 2^(1/4), or
-// 1 for any radius down to it), with the stride cost at which a 10x speed-up would need strides to come. Counts are per
-// path that hits the sphere, over the scene's whole image. JSON on stdout.
+// 1 for any radius down to it), with the stride cost at which a 10x speed-up would need strides to come, and the
+// share of the strides through each sphere (where a stride's cost matters). Counts are per path that hits the
+// sphere, over the scene's whole image. JSON on stdout.
 //   stride_bound [HITTING_PATHS]                              the table (albedo 0.999, g 0.8)
 //   stride_bound HITTING_PATHS TAU ALBEDO G TAU_MIN RATIO     one medium and ladder (sigma_t 100)
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -28,6 +31,9 @@ using stf::render::PixelRng;
 
 struct Counts {
   double collisions = 0, strides = 0;
+  // Strides by sphere: step k of the ladder, the sphere r_min ratio^k (any radius: the octave
+  // [r_min 2^k, r_min 2^(k+1))).
+  std::array<double, 24> by_step{};
 };
 
 // Spheres of optical radius r_min * ratio^k (any radius >= r_min when ratio is 1).
@@ -39,6 +45,11 @@ struct Radii {
     if (ratio == 1) return free_tau;
     return r_min * std::pow(ratio, std::floor(std::log(free_tau / r_min) / std::log(ratio) + 1e-12));
   }
+  int step(double r) const {
+    const double k = ratio == 1 ? std::log2(r / r_min) : std::log(r / r_min) / std::log(ratio);
+    return std::clamp(int(std::floor(k + 1e-9)), 0, 23);
+  }
+  double sphere(int step) const { return r_min * std::pow(ratio == 1 ? 2.0 : ratio, step); }
 };
 
 // The true exit of a path that starts at the centre of the sphere of optical radius r about
@@ -68,6 +79,7 @@ Counts follow(const stf::Medium& m, const Radii* radii, Vec3 x, Vec3 w, PixelRng
     if (r > 0) {
       ideal_stride(m, r, x, w, throughput, rng);
       ++n.strides;
+      ++n.by_step[std::size_t(radii->step(r))];
     } else {
       if (walk.leaves_after_flight(x, w, throughput, rng)) return n;
       ++n.collisions;
@@ -87,9 +99,12 @@ Counts per_path(const stf::Medium& m, const Radii* radii, long paths) {
     if (!stf::render::enter_sphere(ray, m.radius, entry)) continue;
     const Counts n = follow(m, radii, entry, ray.direction, rng);
     sum.collisions += n.collisions, sum.strides += n.strides;
+    for (std::size_t k = 0; k < n.by_step.size(); ++k) sum.by_step[k] += n.by_step[k];
     ++hits;
   }
-  return {sum.collisions / double(hits), sum.strides / double(hits)};
+  Counts mean = sum;
+  mean.collisions /= double(hits), mean.strides /= double(hits);
+  return mean;
 }
 
 
@@ -101,9 +116,17 @@ void print_row(const stf::Medium& m, double brute, const Radii& radii, long path
   const double cost_for_10x = (brute / 10 - n.collisions) / n.strides;
   std::printf("%s  {\"tau\": %g, \"albedo\": %g, \"g\": %g, \"smallest_sphere_tau\": %g, \"radius_ratio\": %.4f, "
               "\"brute_collisions\": %.2f, \"shell_collisions\": %.2f, \"strides\": %.2f, \"speedup_free_strides\": %.2f, "
-              "\"stride_cost_for_10x\": %.3f}",
+              "\"stride_cost_for_10x\": %.3f, \"stride_share_by_sphere_tau\": {",
               first ? "" : ",\n", m.radius * m.sigma_t(), m.albedo(), m.g, radii.r_min, radii.ratio, brute, n.collisions,
               n.strides, brute / n.collisions, cost_for_10x);
+  // Where strides happen: the share of all strides through each sphere of the ladder.
+  const char* separator = "";
+  for (std::size_t k = 0; k < n.by_step.size(); ++k)
+    if (n.by_step[k] > 0) {
+      std::printf("%s\"%g\": %.4f", separator, radii.sphere(int(k)), n.by_step[k] / (n.strides * double(paths)));
+      separator = ", ";
+    }
+  std::printf("}}");
   std::fflush(stdout);
 }
 

@@ -2,7 +2,10 @@
 // In one run, on one thread:
 //  - per entry of a pack: ns per stride (the entry's StrideForm, and ShellSampler::jump for the
 //    ratio, each from where the last stride left) and ns per collision (one free flight and HG
-//    turn in a medium of that entry's albedo and g), and their ratio;
+//    turn in a medium of that entry's albedo and g), and their ratio; the stride form also
+//    from four paths in turn (a stride bound by latency would gain from it);
+//  - the floor of a tabulated stride: one alias draw and uniform points, on random tables of
+//    256 KiB, 1 MiB and 4 MiB (TableDrawFloor);
 //  - inside the render loop: stf render's scene (its medium given by the first entry's albedo
 //    and g, sigma_t 100, radius TAU / 100) with no medium work (camera rays only: each path's
 //    set-up), brute force and in strides; each run's time less the set-up's, brute force's
@@ -50,13 +53,82 @@ double ns_per_stride(const stf::ShellSampler& s, long n, double& sink) {
   return 1e9 * seconds_since(start) / double(n);
 }
 
-// The same through the entry's stride form (what stf render draws).
-double ns_per_stride(const stf::StrideForm& s, long n, double& sink) {
+// The same through the entry's stride form (what stf render draws), from `chains` paths in
+// turn: with 4, the strides of one path do not wait on each other, so if a stride were bound
+// by its latency (each step waiting on the last) it would get faster per stride.
+double ns_per_stride(const stf::StrideForm& s, long n, int chains, double& sink) {
+  std::vector<PixelRng> rng;
+  for (int k = 0; k < chains; ++k) rng.emplace_back(11, std::uint64_t(k));
+  std::vector<Vec3> x(std::size_t(chains), Vec3{0, 0, 0}), w(std::size_t(chains), Vec3{0, 0, 1});
+  const auto start = Clock::now();
+  for (long i = 0; i < n; i += chains) {
+    for (std::size_t k = 0; k < std::size_t(chains); ++k) {
+      PixelRng& r = rng[k];
+      const stf::Stride e = s.jump(x[k], w[k], 1.0, [&r] { return r.uniform(); });
+      x[k] = {e.point.x * 1e-3, e.point.y * 1e-3, e.point.z * 1e-3}, w[k] = e.direction;
+    }
+  }
+  for (std::size_t k = 0; k < std::size_t(chains); ++k) sink += x[k].x + w[k].y;
+  return 1e9 * seconds_since(start) / double(n);
+}
+
+// a u + b v + c w
+Vec3 sum(double a, const Vec3& u, double b, const Vec3& v, double c, const Vec3& w) {
+  return {a * u.x + b * v.x + c * w.x, a * u.y + b * v.y + c * w.y, a * u.z + b * v.z + c * w.z};
+}
+
+// The least a tabulated stride could cost: one alias draw from a table of `bytes` (8 per
+// entry: a float threshold and an index) picks a sub-bin of exit angles and an equal-area cell
+// of exit directions about the exit normal; a uniform point of each, turned into the path's
+// frame. The table is random (what it draws is not a model): this is the arithmetic and the
+// memory traffic of such a draw, not its accuracy (bench/stride_tables.py measures that).
+class TableDrawFloor {
+ public:
+  TableDrawFloor(std::size_t bytes, std::uint64_t seed) {
+    const std::size_t n = (bytes / 8) >> kCellsLog2 << kCellsLog2;
+    PixelRng rng(seed, 0);
+    for (std::size_t i = 0; i < n; ++i) table_.push_back({float(rng.uniform()), std::uint32_t(rng.uniform() * double(n))});
+    const std::size_t subs = n >> kCellsLog2;
+    for (std::size_t k = 0; k <= subs; ++k) cos_edge_.push_back(1 - 2 * double(k) / double(subs));
+  }
+  std::size_t bytes() const { return table_.size() * sizeof(Entry); }
+  template <typename Uniform>
+  stf::Stride jump(const Vec3& x, const Vec3& dir, Uniform&& uniform) const {
+    Vec3 fx, fy;
+    stf::orthonormal_basis(dir, fx, fy);
+    const double t = uniform() * double(table_.size());
+    const std::size_t i = std::size_t(t);
+    const std::size_t cell = t - double(i) < table_[i].threshold ? i : table_[i].alias;
+    const std::size_t sub = cell >> kCellsLog2, row = (cell >> kColsLog2) & ((1u << kRowsLog2) - 1);
+    const double ca = cos_edge_[sub] + uniform() * (cos_edge_[sub + 1] - cos_edge_[sub]);
+    const double sa = std::sqrt(std::max(0.0, (1 - ca) * (1 + ca)));
+    double sb, cb, sp, cp;
+    stf::sincos_2pi(uniform(), sb, cb);
+    const double z = 1 - 2 * (double(row) + uniform()) / (1 << kRowsLog2);
+    stf::sincos_2pi((double(cell & ((1u << kColsLog2) - 1)) + uniform()) / (1 << kColsLog2), sp, cp);
+    const double rho = std::sqrt(std::max(0.0, (1 - z) * (1 + z))), wa = rho * cp;
+    const Vec3 local{ca * wa + sa * z, rho * sp, ca * z - sa * wa};  // exit point (sin a, 0, cos a)
+    const Vec3 e1 = sum(cb, fx, sb, fy, 0, dir), e2 = sum(cb, fy, -sb, fx, 0, dir);
+    const Vec3 p = sum(sa, e1, ca, dir, 0, dir);
+    return {{x.x + p.x, x.y + p.y, x.z + p.z}, sum(local.x, e1, local.y, e2, local.z, dir), stf::kSmooth};
+  }
+
+ private:
+  static constexpr int kRowsLog2 = 4, kColsLog2 = 5, kCellsLog2 = kRowsLog2 + kColsLog2;
+  struct Entry {
+    float threshold;
+    std::uint32_t alias;
+  };
+  std::vector<Entry> table_;
+  std::vector<double> cos_edge_;
+};
+
+double ns_per_table_draw(const TableDrawFloor& s, long n, double& sink) {
   PixelRng rng(11, 0);
   Vec3 x{0, 0, 0}, w{0, 0, 1};
   const auto start = Clock::now();
   for (long i = 0; i < n; ++i) {
-    const stf::Stride e = s.jump(x, w, 1.0, [&rng] { return rng.uniform(); });
+    const stf::Stride e = s.jump(x, w, [&rng] { return rng.uniform(); });
     x = {e.point.x * 1e-3, e.point.y * 1e-3, e.point.z * 1e-3}, w = e.direction;
   }
   sink += x.x + w.y;
@@ -169,14 +241,24 @@ int main(int argc, char** argv) {
     const stf::StfModel& model = pack[i].model;
     const stf::ShellSampler sampler(model);
     const double sampler_stride = ns_per_stride(sampler, 2'000'000, sink);
-    const double stride = ns_per_stride(stf::StrideForm(model), 2'000'000, sink);
+    const stf::StrideForm form(model);
+    const double stride = ns_per_stride(form, 2'000'000, 1, sink);
+    const double interleaved = ns_per_stride(form, 2'000'000, 4, sink);
     const double collision = ns_per_collision(model.albedo, model.g, 10'000'000, sink);
     std::printf(
         "  {\"tau\": %g, \"albedo\": %.6g, \"g\": %g, \"ns_per_stride\": %.1f, "
-        "\"ns_per_sampler_jump\": %.1f, \"ns_per_collision\": %.1f, "
+        "\"ns_per_stride_4_paths_in_turn\": %.1f, \"ns_per_sampler_jump\": %.1f, \"ns_per_collision\": %.1f, "
         "\"stride_cost_collisions\": %.2f}%s\n",
-        model.tau, model.albedo, model.g, stride, sampler_stride, collision, stride / collision,
+        model.tau, model.albedo, model.g, stride, interleaved, sampler_stride, collision, stride / collision,
         i + 1 < pack.size() ? "," : "");
+  }
+  std::printf("], \"table_draw_floor\": [\n");
+  for (const std::size_t bytes : {std::size_t(1) << 18, std::size_t(1) << 20, std::size_t(1) << 22}) {
+    const TableDrawFloor table(bytes, 3);
+    const double draw = ns_per_table_draw(table, 4'000'000, sink);
+    const double collision = ns_per_collision(pack.front().model.albedo, pack.front().model.g, 10'000'000, sink);
+    std::printf("  {\"table_bytes\": %zu, \"ns_per_stride\": %.1f, \"ns_per_collision\": %.1f, \"stride_cost_collisions\": %.2f}%s\n",
+                table.bytes(), draw, collision, draw / collision, bytes < (std::size_t(1) << 22) ? "," : "");
   }
   stf::Medium m;
   m.sigma_s = 100 * pack.front().model.albedo, m.sigma_a = 100 - m.sigma_s,
