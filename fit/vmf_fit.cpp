@@ -115,6 +115,33 @@ std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const std:
 
 namespace {
 
+ceres::Solver::Options solver_options(const VmfFitOptions& options) {
+  ceres::Solver::Options solver;
+  solver.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+  solver.max_num_iterations = options.max_iterations;
+  solver.function_tolerance = options.function_tolerance;
+  solver.num_threads = 1;
+  solver.logging_type = ceres::SILENT;
+  return solver;
+}
+
+// The lobes of the solved parameters, as the deviance saw them: clamped to their bounds.
+std::vector<VmfLobe> solved_lobes(std::vector<double> logits, std::vector<double> log_kappa,
+                                  const std::vector<double>& means, const VmfFitOptions& options) {
+  const std::size_t K = logits.size();
+  for (std::size_t k = 0; k < K; ++k) {
+    logits[k] = std::clamp(logits[k], -kMaxLogit, kMaxLogit);
+    log_kappa[k] = std::clamp(log_kappa[k], std::log(options.min_kappa), std::log(options.max_kappa));
+  }
+  double max_logit = *std::max_element(logits.begin(), logits.end()), sum = 0;
+  for (std::size_t k = 0; k < K; ++k) sum += std::exp(logits[k] - max_logit);
+  std::vector<VmfLobe> lobes;
+  for (std::size_t k = 0; k < K; ++k)
+    lobes.push_back({std::exp(logits[k] - max_logit) / sum, std::exp(log_kappa[k]),
+                     normalize({means[3 * k], means[3 * k + 1], means[3 * k + 2]})});
+  return lobes;
+}
+
 VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& levels,
                    const std::vector<VmfLobe>& start, const VmfFitOptions& options) {
   const int K = int(start.size());
@@ -157,29 +184,12 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
     if (!slopes.empty()) problem.SetManifold(slopes.data(), first_logit_held.get());
   }
 
-  ceres::Solver::Options solver;
-  solver.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-  solver.max_num_iterations = options.max_iterations;
-  solver.function_tolerance = options.function_tolerance;
-  solver.num_threads = 1;
-  solver.logging_type = ceres::SILENT;
   ceres::Solver::Summary summary;
-  ceres::Solve(solver, &problem, &summary);
-
+  ceres::Solve(solver_options(options), &problem, &summary);
   VmfFitResult result;
   result.iterations = int(summary.iterations.size());
   result.deviance = 2 * summary.final_cost;
-  // As the deviance saw them: clamped to their bounds.
-  for (int k = 0; k < K; ++k) {
-    logits[k] = std::clamp(logits[k], -kMaxLogit, kMaxLogit);
-    log_kappa[k] = std::clamp(log_kappa[k], std::log(options.min_kappa), std::log(options.max_kappa));
-  }
-  double max_logit = *std::max_element(logits.begin(), logits.end()), sum = 0;
-  for (int k = 0; k < K; ++k) sum += std::exp(logits[k] - max_logit);
-  for (int k = 0; k < K; ++k) {
-    result.lobes.push_back({std::exp(logits[k] - max_logit) / sum, std::exp(log_kappa[k]),
-                            normalize({means[3 * k], means[3 * k + 1], means[3 * k + 2]})});
-  }
+  result.lobes = solved_lobes(logits, log_kappa, means, options);
   return result;
 }
 
