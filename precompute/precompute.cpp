@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <condition_variable>
+#include <functional>
 #include <mutex>
 #include <algorithm>
 #include <cmath>
@@ -140,6 +141,55 @@ class Driver {
   std::chrono::steady_clock::time_point last_save_ = std::chrono::steady_clock::now();
 };
 
+// Runs the driver's chunks on `threads` workers, reporting progress every 100 ms (waking at
+// once when they are done); false if a chunk failed or the run was cancelled.
+bool run_workers(Driver& driver, int threads, const std::atomic<bool>* cancel, const ProgressFn& progress,
+                 const std::function<double()>& seconds) {
+  int running = threads;  // guarded by `mutex`
+  std::mutex mutex;
+  std::condition_variable finished;
+  std::atomic<bool> stopped{false};
+  auto worker = [&] {
+    if (!driver.work(cancel)) stopped = true;
+    std::lock_guard<std::mutex> lock(mutex);
+    --running;
+    finished.notify_one();
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
+  for (std::unique_lock<std::mutex> lock(mutex); running > 0;) {
+    if (finished.wait_for(lock, std::chrono::milliseconds(100), [&] { return running == 0; })) break;
+    if (progress) progress(driver.paths_done(), driver.total_paths(), seconds());
+  }
+  for (auto& th : pool) th.join();
+  return !stopped && !(cancel && cancel->load());
+}
+
+// The table of a finished run's tally (its counts moved out).
+Table tally_table(Tally& tally, const Medium& medium, const PrecomputeSettings& s, const ChunkRange& range,
+                  const DirectionGrid& grid) {
+  Table table;
+  table.medium = medium;
+  table.seed = s.seed;
+  table.max_scatter = s.max_scatter;
+  table.safety_cap = kSafetyMaxScatter;
+  table.chunk_first = range.first, table.chunk_last = range.last, table.chunk_count = range.count;
+  table.run_paths = s.paths;
+  lay_out(table, grid, s.alpha_bins);
+  for (int h = 0; h < 2; ++h) table.weight_half[h] = std::move(tally.counts[h]);
+  table.escaped_weight = double(tally.escaped);
+  table.uncollided_half = {double(tally.uncollided[0]), double(tally.uncollided[1])};
+  table.once = tally.once.sorted();
+  table.sub_bins = kSubBins;
+  for (int h = 0; h < 2; ++h) table.multiple_sub_half[h] = std::move(tally.multiple_sub[h]);
+  table.absorbed_weight = double(tally.absorbed);
+  table.truncated_weight = double(tally.truncated);
+  table.collisions = std::int64_t(tally.collisions);
+  table.absorbed_collisions = tally.absorbed_collisions_known ? std::int64_t(tally.absorbed_collisions) : -1;
+  table.generator = "stf " STF_VERSION;
+  return table;
+}
+
 }  // namespace
 
 std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& s, const std::atomic<bool>* cancel,
@@ -160,53 +210,14 @@ std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& 
   const ChunkRange range = chunk_range(s);
   int threads = s.threads > 0 ? s.threads : int(std::max(1u, std::thread::hardware_concurrency()));
   threads = int(std::max<std::int64_t>(1, std::min<std::int64_t>(threads, range.last - range.first)));
-
-  int running = threads;  // guarded by `mutex`
-  std::mutex mutex;
-  std::condition_variable finished;
-  std::atomic<bool> stopped{false};
-  auto worker = [&] {
-    if (!driver.work(cancel)) stopped = true;
-    std::lock_guard<std::mutex> lock(mutex);
-    --running;
-    finished.notify_one();
-  };
-  std::vector<std::thread> pool;
-  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
-  auto seconds = [&] {
+  const std::function<double()> seconds = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
-  // Report progress every 100 ms until the workers are done; wake at once when they are.
-  for (std::unique_lock<std::mutex> lock(mutex); running > 0;) {
-    if (finished.wait_for(lock, std::chrono::milliseconds(100), [&] { return running == 0; })) break;
-    if (progress) progress(driver.paths_done(), driver.total_paths(), seconds());
-  }
-  for (auto& th : pool) th.join();
-  if (stopped || (cancel && cancel->load())) return std::nullopt;
+  if (!run_workers(driver, threads, cancel, progress, seconds)) return std::nullopt;
   if (progress) progress(driver.total_paths(), driver.total_paths(), seconds());
-
-  Tally& tally = driver.state().tally;
-  Table table;
-  table.medium = medium;
+  Table table = tally_table(driver.state().tally, medium, s, range, *grid);
   table.paths = driver.total_paths();
-  table.seed = s.seed;
-  table.max_scatter = s.max_scatter;
-  table.safety_cap = kSafetyMaxScatter;
-  table.chunk_first = range.first, table.chunk_last = range.last, table.chunk_count = range.count;
-  table.run_paths = s.paths;
-  lay_out(table, *grid, s.alpha_bins);
-  for (int h = 0; h < 2; ++h) table.weight_half[h] = std::move(tally.counts[h]);
-  table.escaped_weight = double(tally.escaped);
-  table.uncollided_half = {double(tally.uncollided[0]), double(tally.uncollided[1])};
-  table.once = tally.once.sorted();
-  table.sub_bins = kSubBins;
-  for (int h = 0; h < 2; ++h) table.multiple_sub_half[h] = std::move(tally.multiple_sub[h]);
-  table.absorbed_weight = double(tally.absorbed);
-  table.truncated_weight = double(tally.truncated);
-  table.collisions = std::int64_t(tally.collisions);
-  table.absorbed_collisions = tally.absorbed_collisions_known ? std::int64_t(tally.absorbed_collisions) : -1;
   table.runtime_s = seconds();
-  table.generator = "stf " STF_VERSION;
   return table;
 }
 
