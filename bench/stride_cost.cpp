@@ -3,7 +3,8 @@
 //  - per entry of a pack: ns per stride (the entry's StrideForm, and ShellSampler::jump for the
 //    ratio, each from where the last stride left) and ns per collision (one free flight and HG
 //    turn in a medium of that entry's albedo and g), and their ratio; the stride form also
-//    from four paths in turn (a stride bound by latency would gain from it);
+//    from four paths in turn (were the processor to overlap strides of different paths, this
+//    would be faster per stride);
 //  - the floor of a tabulated stride: one alias draw and uniform points, on random tables of
 //    256 KiB, 1 MiB and 4 MiB (TableDrawFloor);
 //  - inside the render loop: stf render's scene (its medium given by the first entry's albedo
@@ -54,8 +55,8 @@ double ns_per_stride(const stf::ShellSampler& s, long n, double& sink) {
 }
 
 // The same through the entry's stride form (what stf render draws), from `chains` paths in
-// turn: with 4, the strides of one path do not wait on each other, so if a stride were bound
-// by its latency (each step waiting on the last) it would get faster per stride.
+// turn: with 4, consecutive strides do not wait on each other, so if the processor overlapped
+// them a stride would get cheaper.
 double ns_per_stride(const stf::StrideForm& s, long n, int chains, double& sink) {
   std::vector<PixelRng> rng;
   for (int k = 0; k < chains; ++k) rng.emplace_back(11, std::uint64_t(k));
