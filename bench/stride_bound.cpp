@@ -32,8 +32,8 @@ using stf::render::PixelRng;
 struct Counts {
   double collisions = 0, strides = 0;
   // Strides by sphere: step k of the ladder, the sphere r_min ratio^k (any radius: the octave
-  // [r_min 2^k, r_min 2^(k+1))).
-  std::array<double, 24> by_step{};
+  // [r_min 2^k, r_min 2^(k+1)), reported by its lower edge).
+  std::array<double, 64> by_step{};
 };
 
 // Spheres of optical radius r_min * ratio^k (any radius >= r_min when ratio is 1).
@@ -47,7 +47,7 @@ struct Radii {
   }
   int step(double r) const {
     const double k = ratio == 1 ? std::log2(r / r_min) : std::log(r / r_min) / std::log(ratio);
-    return std::clamp(int(std::floor(k + 1e-9)), 0, 23);
+    return std::clamp(int(std::floor(k + 1e-9)), 0, 63);
   }
   double sphere(int step) const { return r_min * std::pow(ratio == 1 ? 2.0 : ratio, step); }
 };
@@ -104,6 +104,7 @@ Counts per_path(const stf::Medium& m, const Radii* radii, long paths) {
   }
   Counts mean = sum;
   mean.collisions /= double(hits), mean.strides /= double(hits);
+  for (double& s : mean.by_step) s /= double(hits);
   return mean;
 }
 
@@ -123,7 +124,7 @@ void print_row(const stf::Medium& m, double brute, const Radii& radii, long path
   const char* separator = "";
   for (std::size_t k = 0; k < n.by_step.size(); ++k)
     if (n.by_step[k] > 0) {
-      std::printf("%s\"%g\": %.4f", separator, radii.sphere(int(k)), n.by_step[k] / (n.strides * double(paths)));
+      std::printf("%s\"%g\": %.4f", separator, radii.sphere(int(k)), n.by_step[k] / n.strides);
       separator = ", ";
     }
   std::printf("}}");

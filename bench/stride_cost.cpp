@@ -73,9 +73,9 @@ double ns_per_stride(const stf::StrideForm& s, long n, int chains, double& sink)
   return 1e9 * seconds_since(start) / double(n);
 }
 
-// a u + b v + c w
-Vec3 sum(double a, const Vec3& u, double b, const Vec3& v, double c, const Vec3& w) {
-  return {a * u.x + b * v.x + c * w.x, a * u.y + b * v.y + c * w.y, a * u.z + b * v.z + c * w.z};
+// a u + b v
+Vec3 sum(double a, const Vec3& u, double b, const Vec3& v) {
+  return {a * u.x + b * v.x, a * u.y + b * v.y, a * u.z + b * v.z};
 }
 
 // The least a tabulated stride could cost: one alias draw from a table of `bytes` (8 per
@@ -109,9 +109,10 @@ class TableDrawFloor {
     stf::sincos_2pi((double(cell & ((1u << kColsLog2) - 1)) + uniform()) / (1 << kColsLog2), sp, cp);
     const double rho = std::sqrt(std::max(0.0, (1 - z) * (1 + z))), wa = rho * cp;
     const Vec3 local{ca * wa + sa * z, rho * sp, ca * z - sa * wa};  // exit point (sin a, 0, cos a)
-    const Vec3 e1 = sum(cb, fx, sb, fy, 0, dir), e2 = sum(cb, fy, -sb, fx, 0, dir);
-    const Vec3 p = sum(sa, e1, ca, dir, 0, dir);
-    return {{x.x + p.x, x.y + p.y, x.z + p.z}, sum(local.x, e1, local.y, e2, local.z, dir), stf::kSmooth};
+    const Vec3 e1 = sum(cb, fx, sb, fy), e2 = sum(cb, fy, -sb, fx);
+    const Vec3 p = sum(sa, e1, ca, dir), d = sum(local.x, e1, local.y, e2);
+    return {{x.x + p.x, x.y + p.y, x.z + p.z}, {d.x + local.z * dir.x, d.y + local.z * dir.y, d.z + local.z * dir.z},
+            stf::kSmooth};
   }
 
  private:
@@ -220,6 +221,38 @@ LoopRun render_loop(const stf::Medium& m, const stf::render::Method& method, int
   return run;
 }
 
+// Per entry of the pack: its strides (sampler, stride form, four paths in turn) and collisions.
+void print_entries(const std::vector<stf::PackEntry>& pack, double& sink) {
+  std::printf("{\"entries\": [\n");
+  for (std::size_t i = 0; i < pack.size(); ++i) {
+    const stf::StfModel& model = pack[i].model;
+    const stf::ShellSampler sampler(model);
+    const double sampler_stride = ns_per_stride(sampler, 2'000'000, sink);
+    const stf::StrideForm form(model);
+    const double stride = ns_per_stride(form, 2'000'000, 1, sink);
+    const double interleaved = ns_per_stride(form, 2'000'000, 4, sink);
+    const double collision = ns_per_collision(model.albedo, model.g, 10'000'000, sink);
+    std::printf(
+        "  {\"tau\": %g, \"albedo\": %.6g, \"g\": %g, \"ns_per_stride\": %.1f, "
+        "\"ns_per_stride_4_paths_in_turn\": %.1f, \"ns_per_sampler_jump\": %.1f, \"ns_per_collision\": %.1f, "
+        "\"stride_cost_collisions\": %.2f}%s\n",
+        model.tau, model.albedo, model.g, stride, interleaved, sampler_stride, collision, stride / collision,
+        i + 1 < pack.size() ? "," : "");
+  }
+}
+
+// The tabulated draw's floor at three table sizes, against collisions of the first entry's medium.
+void print_table_floor(const stf::StfModel& model, double& sink) {
+  std::printf("], \"table_draw_floor\": [\n");
+  for (const std::size_t bytes : {std::size_t(1) << 18, std::size_t(1) << 20, std::size_t(1) << 22}) {
+    const TableDrawFloor table(bytes, 3);
+    const double draw = ns_per_table_draw(table, 4'000'000, sink);
+    const double collision = ns_per_collision(model.albedo, model.g, 10'000'000, sink);
+    std::printf("  {\"table_bytes\": %zu, \"ns_per_stride\": %.1f, \"ns_per_collision\": %.1f, \"stride_cost_collisions\": %.2f}%s\n",
+                table.bytes(), draw, collision, draw / collision, bytes < (std::size_t(1) << 22) ? "," : "");
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -237,30 +270,8 @@ int main(int argc, char** argv) {
   const double tau = argc > 2 ? std::atof(argv[2]) : 100;
   const int spp = argc > 3 ? std::atoi(argv[3]) : 64;
   double sink = 0;
-  std::printf("{\"entries\": [\n");
-  for (std::size_t i = 0; i < pack.size(); ++i) {
-    const stf::StfModel& model = pack[i].model;
-    const stf::ShellSampler sampler(model);
-    const double sampler_stride = ns_per_stride(sampler, 2'000'000, sink);
-    const stf::StrideForm form(model);
-    const double stride = ns_per_stride(form, 2'000'000, 1, sink);
-    const double interleaved = ns_per_stride(form, 2'000'000, 4, sink);
-    const double collision = ns_per_collision(model.albedo, model.g, 10'000'000, sink);
-    std::printf(
-        "  {\"tau\": %g, \"albedo\": %.6g, \"g\": %g, \"ns_per_stride\": %.1f, "
-        "\"ns_per_stride_4_paths_in_turn\": %.1f, \"ns_per_sampler_jump\": %.1f, \"ns_per_collision\": %.1f, "
-        "\"stride_cost_collisions\": %.2f}%s\n",
-        model.tau, model.albedo, model.g, stride, interleaved, sampler_stride, collision, stride / collision,
-        i + 1 < pack.size() ? "," : "");
-  }
-  std::printf("], \"table_draw_floor\": [\n");
-  for (const std::size_t bytes : {std::size_t(1) << 18, std::size_t(1) << 20, std::size_t(1) << 22}) {
-    const TableDrawFloor table(bytes, 3);
-    const double draw = ns_per_table_draw(table, 4'000'000, sink);
-    const double collision = ns_per_collision(pack.front().model.albedo, pack.front().model.g, 10'000'000, sink);
-    std::printf("  {\"table_bytes\": %zu, \"ns_per_stride\": %.1f, \"ns_per_collision\": %.1f, \"stride_cost_collisions\": %.2f}%s\n",
-                table.bytes(), draw, collision, draw / collision, bytes < (std::size_t(1) << 22) ? "," : "");
-  }
+  print_entries(pack, sink);
+  print_table_floor(pack.front().model, sink);
   stf::Medium m;
   m.sigma_s = 100 * pack.front().model.albedo, m.sigma_a = 100 - m.sigma_s,
   m.g = pack.front().model.g;
