@@ -58,6 +58,7 @@ QuadratureLevels::QuadratureLevels(const DirectionGrid& grid) {
     for (std::size_t i = 0; i < q.point.size(); ++i)
       widest = std::min(widest, dot(centres_[i / std::size_t(q.per_cell)], q.point[i]));
     spread_.push_back(std::acos(std::clamp(widest, -1.0, 1.0)) + 1e-9);
+    max_sub_cell_.push_back(*std::max_element(q.weight.begin(), q.weight.end()));
   }
   const CellQuadrature& finest = levels_[kMaxLevel];
   for (int level = 0; level < kMaxLevel; ++level) {
@@ -129,9 +130,9 @@ std::vector<double> lobe_cell_probabilities(const std::vector<VmfLobe>& lobes, c
                                             double counts, const OutwardFactors* outward, const BinTurn* turn,
                                             Tails tails) {
   const std::vector<double> every_cell(levels.centres().size(), 1.0);
-  LobeIntegrator cells(levels, every_cell, outward, turn);
+  LobeIntegrator cells(levels, every_cell, outward, turn, counts);
   if (tails == Tails::kKeep) cells.keep_tails();
-  return cells.probabilities(lobes, counts);
+  return cells.probabilities(lobes);
 }
 
 std::vector<double> density_cell_probabilities(const std::function<double(const Vec3&)>& density,
@@ -160,13 +161,9 @@ double poisson_deviance(const std::vector<double>& counts, const std::vector<dou
 }
 
 LobeIntegrator::LobeIntegrator(const QuadratureLevels& levels, const std::vector<double>& counts,
-                               const OutwardFactors* outward, const BinTurn* turn)
+                               const OutwardFactors* outward, const BinTurn* turn, double escapes)
     : levels_(levels), outward_(outward), row_of_cell_(counts.size(), -1) {
   if (turn && turn->rate != 0) turn_nodes(*turn);
-  for (int level = 0; level <= QuadratureLevels::kMaxLevel; ++level)
-    for (double a : levels.at(level).weight) max_sub_cell_[level] = std::max(max_sub_cell_[level], a);
-  for (double n : counts) widen_above_ += n;
-  widen_above_ = 0.6 / std::sqrt(std::max(widen_above_, 1.0));
   for (std::size_t c = 0; c < counts.size(); ++c) {
     total_ += counts[c];
     if (counts[c] > 0) {
@@ -174,11 +171,11 @@ LobeIntegrator::LobeIntegrator(const QuadratureLevels& levels, const std::vector
       count_.push_back(counts[c]);
     }
   }
+  if (escapes >= 0) total_ = escapes;
+  widen_above_ = 0.6 / std::sqrt(std::max(total_, 1.0));
 }
 
-std::vector<double> LobeIntegrator::probabilities(const std::vector<VmfLobe>& lobes, double escapes) {
-  total_ = escapes;
-  widen_above_ = 0.6 / std::sqrt(std::max(escapes, 1.0));
+std::vector<double> LobeIntegrator::probabilities(const std::vector<VmfLobe>& lobes) const {
   const int rows = int(count_.size());
   std::vector<double> p(std::size_t(rows), 0.0), mass(p.size());
   CopyScratch scratch = make_scratch(false);
@@ -232,7 +229,7 @@ void LobeIntegrator::integrate_lobe(const Vec3& mean, double kappa, PointFactor 
   const int level = levels_.level_for_kappa(kappa, total_);
   const CellQuadrature& q = levels_.at(level);
   factor.for_level(level);
-  const double max_sub_cell = max_sub_cell_[level];
+  const double max_sub_cell = levels_.max_sub_cell(level);
   // The widening is the quadrature's second-order correction (a sub-cell average of a
   // lobe is the lobe with the sub-cell's variance added): it changes cell masses by about
   // kappa a / 24. Where that is below 1/40 of the Poisson noise of N counts

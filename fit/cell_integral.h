@@ -45,6 +45,8 @@ class QuadratureLevels {
   // a lobe can skip a whole cell when its nearest possible point is beyond its reach.
   const std::vector<Vec3>& centres() const { return centres_; }
   double spread(int level) const { return spread_[std::size_t(level)]; }
+  // The largest sub-cell solid angle at a level (the widening's scale).
+  double max_sub_cell(int level) const { return max_sub_cell_[std::size_t(level)]; }
   // The cells [first, last) outside which no centre lies within `reach` radians of `mean`, by
   // the centres' z alone: on a grid numbered ring by ring (HEALPix) a narrow lobe's cells are
   // a short run of indices, and a loop over them visits its cells in the same order as one
@@ -62,6 +64,7 @@ class QuadratureLevels {
   // with c, so they bound a z band's cells by binary search whatever the numbering.
   std::vector<double> lowest_z_up_to_, highest_z_from_;
   std::vector<double> spread_;
+  std::vector<double> max_sub_cell_;
   double cell_solid_angle_;  // the largest cell's
 };
 
@@ -104,9 +107,11 @@ OutwardFactors outward_cell_means(const QuadratureLevels& levels, double a0, dou
 // copies. Rows are the cells with counts; a lobe's mass outside them goes to its total only.
 class LobeIntegrator {
  public:
-  // `counts` per cell of the grid; `outward` (hemispherical lobes) and `turn` may be null.
+  // `counts` per cell of the grid; `outward` (hemispherical lobes) and `turn` may be null. Lobes
+  // are integrated as accurately as `escapes` escapes need (levels, widening); negative: the
+  // counts' sum.
   LobeIntegrator(const QuadratureLevels& levels, const std::vector<double>& counts, const OutwardFactors* outward,
-                 const BinTurn* turn);
+                 const BinTurn* turn, double escapes = -1);
 
   // Where one lobe's integrals go: its masses on the rows (and, with derivatives, their
   // derivatives by log kappa and by the mean), and its totals over the sphere.
@@ -147,8 +152,8 @@ class LobeIntegrator {
   void integrate_bin_lobe(const Vec3& mean, double kappa, const LobeIntegrals& out, CopyScratch& scratch) const;
 
   // The probabilities of the rows' cells under `lobes` (the deviance's model, without the
-  // residuals), each lobe integrated as for `escapes` escapes.
-  std::vector<double> probabilities(const std::vector<VmfLobe>& lobes, double escapes);
+  // residuals).
+  std::vector<double> probabilities(const std::vector<VmfLobe>& lobes) const;
 
  private:
   // The outward factor at quadrature point i (at x): from a bin's table, from a turned bin's
@@ -203,8 +208,7 @@ class LobeIntegrator {
   double span_ = 0;                       // the turn across the bin
   std::vector<int> row_of_cell_;
   std::vector<double> count_;
-  double total_ = 0;
-  double max_sub_cell_[QuadratureLevels::kMaxLevel + 1] = {};  // the largest sub-cell solid angle per level
+  double total_ = 0;        // the escapes the integrals are as accurate as
   double widen_above_ = 0;  // kappa a / 12 beyond which lobes are widened
   double cut_efolds_ = 40;  // points farther below a lobe's peak are skipped
 };
