@@ -11,12 +11,16 @@
 // share of the strides through each sphere (where a stride's cost matters). Counts are per path that hits the
 // sphere, over the scene's whole image. JSON on stdout.
 //   stride_bound [HITTING_PATHS]                              the table (albedo 0.999, g 0.8)
-//   stride_bound HITTING_PATHS TAU ALBEDO G TAU_MIN RATIO     one medium and ladder (sigma_t 100)
+//   stride_bound HITTING_PATHS TAU ALBEDO G TAU_MIN RATIO [TAU_MAX]
+//                                                             one medium and ladder (sigma_t 100),
+//                                                             its spheres up to TAU_MAX
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
+#include <string>
 #include <vector>
 
 #include "pixel_rng.h"
@@ -39,11 +43,12 @@ struct Counts {
 // Spheres of optical radius r_min * ratio^k (any radius >= r_min when ratio is 1).
 struct Radii {
   double r_min, ratio;
+  double r_max = std::numeric_limits<double>::infinity();  // the largest sphere of the ladder
   // The largest optical radius that fits in `free_tau`, 0 when none does.
   double fit(double free_tau) const {
     if (free_tau < r_min) return 0;
-    if (ratio == 1) return free_tau;
-    return r_min * std::pow(ratio, std::floor(std::log(free_tau / r_min) / std::log(ratio) + 1e-12));
+    if (ratio == 1) return std::min(free_tau, r_max);
+    return std::min(r_max, r_min * std::pow(ratio, std::floor(std::log(free_tau / r_min) / std::log(ratio) + 1e-12)));
   }
   int step(double r) const {
     const double k = ratio == 1 ? std::log2(r / r_min) : std::log(r / r_min) / std::log(ratio);
@@ -115,10 +120,11 @@ void print_row(const stf::Medium& m, double brute, const Radii& radii, long path
   const Counts n = per_path(m, &radii, paths);
   // The stride cost, in collisions, at which the speed-up would be 10 (negative: never).
   const double cost_for_10x = (brute / 10 - n.collisions) / n.strides;
-  std::printf("%s  {\"tau\": %g, \"albedo\": %g, \"g\": %g, \"smallest_sphere_tau\": %g, \"radius_ratio\": %.4f, "
+  const std::string largest = std::isinf(radii.r_max) ? "null" : std::to_string(radii.r_max);
+  std::printf("%s  {\"tau\": %g, \"albedo\": %g, \"g\": %g, \"smallest_sphere_tau\": %g, \"largest_sphere_tau\": %s, \"radius_ratio\": %.4f, "
               "\"brute_collisions\": %.2f, \"shell_collisions\": %.2f, \"strides\": %.2f, \"speedup_free_strides\": %.2f, "
               "\"stride_cost_for_10x\": %.3f, \"stride_share_by_sphere_tau\": {",
-              first ? "" : ",\n", m.radius * m.sigma_t(), m.albedo(), m.g, radii.r_min, radii.ratio, brute, n.collisions,
+              first ? "" : ",\n", m.radius * m.sigma_t(), m.albedo(), m.g, radii.r_min, largest.c_str(), radii.ratio, brute, n.collisions,
               n.strides, brute / n.collisions, cost_for_10x);
   // Where strides happen: the share of all strides through each sphere of the ladder.
   const char* separator = "";
@@ -141,9 +147,11 @@ stf::Medium medium(double tau, double albedo, double g) {
 
 int main(int argc, char** argv) {
   const long paths = argc > 1 ? std::atol(argv[1]) : 20000;
-  if (argc == 7) {
+  if (argc == 7 || argc == 8) {
     const stf::Medium m = medium(std::atof(argv[2]), std::atof(argv[3]), std::atof(argv[4]));
-    print_row(m, per_path(m, nullptr, paths).collisions, {std::atof(argv[5]), std::atof(argv[6])}, paths, true);
+    print_row(m, per_path(m, nullptr, paths).collisions, 
+              {std::atof(argv[5]), std::atof(argv[6]), argc == 8 ? std::atof(argv[7]) : std::numeric_limits<double>::infinity()},
+              paths, true);
     std::printf("\n");
     return 0;
   }

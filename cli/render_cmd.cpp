@@ -41,18 +41,8 @@ std::string cache_folder(const RenderOptions& o) {
   fail("no cache folder for the pack: give --cache (or set STF_CACHE_DIR)");
 }
 
-// What a stride of the stride form costs, in collisions (bench/stride_cost on the small spheres
-// of a render pack, docs/render.md): spheres whose crossing takes fewer collisions than this
-// cost more than they save, so the render pack starts at the smallest that takes more.
-constexpr double kStrideCost = 4.5;
-// Neighbouring spheres of the render pack differ by this factor. sqrt 2 raises the bound of ideal
-// strides by 13-16% at a fixed stride cost, but its strides cost more (more spheres' data in the
-// caches) and its packs 1.5-2.3x the precompute; in render_bench it did not pay on dense media
-// (docs/render.md, "Ladders from the stride cost").
-constexpr double kSphereRatio = 2;
-
-// The one-medium scene whose pack the render needs: spheres from the smallest that pays up to the whole
-// sphere, certified within `tolerance` (limits as in the default scene, healpix:16).
+// The one-medium scene whose pack the render needs: the spheres of render::pack_ladder, certified
+// within `tolerance` (limits as in the default scene, healpix:16).
 scene::Scene render_scene(const RenderOptions& o) {
   scene::Scene sc;
   sc.path = "stf render";
@@ -62,10 +52,11 @@ scene::Scene render_scene(const RenderOptions& o) {
   sc.settings.alpha_bins = 45;
   sc.settings.model = "hvmf:auto";
   const Medium& m = o.medium;
-  const double smallest = render::smallest_paying_tau(m.g, kStrideCost);
-  sc.settings.tau_skip = smallest;
-  sc.settings.tau_ratio = kSphereRatio;
-  sc.media.push_back({"render", m.sigma_s, m.sigma_a, m.g, std::min(m.radius, smallest / m.sigma_t()), m.radius, 0});
+  const render::PackLadder ladder = render::pack_ladder(m);
+  sc.settings.tau_skip = ladder.smallest;
+  sc.settings.tau_ratio = ladder.ratio;
+  sc.media.push_back({"render", m.sigma_s, m.sigma_a, m.g, std::min(m.radius, ladder.smallest / m.sigma_t()),
+                      std::min(m.radius, ladder.largest / m.sigma_t()), 0});
   return sc;
 }
 

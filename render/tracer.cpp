@@ -77,6 +77,25 @@ double smallest_paying_tau(double g, double stride_cost) {
   return tau;
 }
 
+namespace {
+// What a stride of the stride form costs, in collisions (bench/stride_cost on the small spheres
+// of a render pack): spheres whose crossing takes fewer collisions than this cost more than they
+// save, so the render pack starts at the smallest that takes more.
+constexpr double kStrideCost = 4.5;
+// Neighbouring spheres of the render pack differ by this factor. sqrt 2 raises the bound of ideal
+// strides by 13-16% at a fixed stride cost, but its strides cost more (more spheres' data in the
+// caches) and its packs 1.5-2.3x the precompute; in render_bench it did not pay on dense media.
+constexpr double kSphereRatio = 2;
+// The largest sphere of the render pack. Larger ones carry under 2% of the strides of the bench's
+// media (stride_bound's shares) and, as a sphere's walk grows as tau^2, most of the precompute:
+// beyond tau 128 they raised the bound of ideal strides by 3% at most (tau 1000, albedo 0.99999).
+constexpr double kLargestSphere = 128;
+}  // namespace
+
+PackLadder pack_ladder(const Medium& m) {
+  return {smallest_paying_tau(m.g, kStrideCost), std::min(m.tau(), kLargestSphere), kSphereRatio};
+}
+
 std::vector<PackEntry> entries_for(const Medium& m, const std::vector<PackEntry>& pack) {
   std::vector<PackEntry> mine;
   for (const PackEntry& e : pack)

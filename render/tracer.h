@@ -88,6 +88,13 @@ double crossing_collisions(double tau, double g, int paths = 20000);
 // than a stride costs (`stride_cost`, in collisions): smaller spheres cost more than they save.
 double smallest_paying_tau(double g, double stride_cost);
 
+// The spheres of `stf render`'s pack for a medium (docs/render.md, "Ladders from the stride
+// cost"): from `smallest` by `ratio` up to the medium's optical radius, but none above `largest`.
+struct PackLadder {
+  double smallest, largest, ratio;
+};
+PackLadder pack_ladder(const Medium& m);
+
 // Entries of `pack` computed for this medium's albedo and g (relative difference below 1e-9).
 std::vector<PackEntry> entries_for(const Medium& m, const std::vector<PackEntry>& pack);
 

@@ -119,5 +119,18 @@ TEST(Render, CrossingCollisionsHaveTheStraightPathLimit) {
   EXPECT_EQ(smallest_paying_tau(0.99999, 1e9), 16);
 }
 
+// stf render's pack: from the sphere that pays at the stride cost, by 2, up to the medium's tau
+// or tau 128, whichever is smaller.
+TEST(Render, PackLadderStopsAtTheLargestSphereThatPays) {
+  Medium cloud;
+  cloud.sigma_s = 99.99, cloud.sigma_a = 0.01, cloud.g = 0.85, cloud.radius = 10;
+  const PackLadder big = pack_ladder(cloud);
+  EXPECT_EQ(big.smallest, 4);
+  EXPECT_EQ(big.largest, 128);
+  EXPECT_EQ(big.ratio, 2);
+  cloud.radius = 0.2;
+  EXPECT_DOUBLE_EQ(pack_ladder(cloud).largest, 20);
+}
+
 }  // namespace
 }  // namespace stf::render
