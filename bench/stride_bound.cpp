@@ -120,11 +120,12 @@ void print_row(const stf::Medium& m, double brute, const Radii& radii, long path
   const Counts n = per_path(m, &radii, paths);
   // The stride cost, in collisions, at which the speed-up would be 10 (negative: never).
   const double cost_for_10x = (brute / 10 - n.collisions) / n.strides;
-  const std::string largest = std::isinf(radii.r_max) ? "null" : std::to_string(radii.r_max);
+  char largest[32] = "null";
+  if (!std::isinf(radii.r_max)) std::snprintf(largest, sizeof largest, "%g", radii.r_max);
   std::printf("%s  {\"tau\": %g, \"albedo\": %g, \"g\": %g, \"smallest_sphere_tau\": %g, \"largest_sphere_tau\": %s, \"radius_ratio\": %.4f, "
               "\"brute_collisions\": %.2f, \"shell_collisions\": %.2f, \"strides\": %.2f, \"speedup_free_strides\": %.2f, "
               "\"stride_cost_for_10x\": %.3f, \"stride_share_by_sphere_tau\": {",
-              first ? "" : ",\n", m.radius * m.sigma_t(), m.albedo(), m.g, radii.r_min, largest.c_str(), radii.ratio, brute, n.collisions,
+              first ? "" : ",\n", m.radius * m.sigma_t(), m.albedo(), m.g, radii.r_min, largest, radii.ratio, brute, n.collisions,
               n.strides, brute / n.collisions, cost_for_10x);
   // Where strides happen: the share of all strides through each sphere of the ladder.
   const char* separator = "";
@@ -149,9 +150,15 @@ int main(int argc, char** argv) {
   const long paths = argc > 1 ? std::atol(argv[1]) : 20000;
   if (argc == 7 || argc == 8) {
     const stf::Medium m = medium(std::atof(argv[2]), std::atof(argv[3]), std::atof(argv[4]));
-    print_row(m, per_path(m, nullptr, paths).collisions, 
-              {std::atof(argv[5]), std::atof(argv[6]), argc == 8 ? std::atof(argv[7]) : std::numeric_limits<double>::infinity()},
-              paths, true);
+    Radii radii{std::atof(argv[5]), std::atof(argv[6])};
+    if (argc == 8) {
+      radii.r_max = radii.fit(std::atof(argv[7]));  // the ladder's sphere at or below TAU_MAX
+      if (radii.r_max <= 0) {
+        std::fprintf(stderr, "stride_bound: TAU_MAX %s is below TAU_MIN %s\n", argv[7], argv[5]);
+        return 2;
+      }
+    }
+    print_row(m, per_path(m, nullptr, paths).collisions, radii, paths, true);
     std::printf("\n");
     return 0;
   }

@@ -86,9 +86,9 @@ constexpr double kStrideCost = 4.5;
 // strides by 13-16% at a fixed stride cost, but its strides cost more (more spheres' data in the
 // caches) and its packs 1.5-2.3x the precompute; in render_bench it did not pay on dense media.
 constexpr double kSphereRatio = 2;
-// The largest sphere of the render pack. Larger ones carry under 2% of the strides of the bench's
+// The largest sphere of the render pack. Larger ones carry about 1% of the strides of the bench's
 // media (stride_bound's shares) and, as a sphere's walk grows as tau^2, most of the precompute:
-// beyond tau 128 they raised the bound of ideal strides by 3% at most (tau 1000, albedo 0.99999).
+// dropping them lowers the bound of ideal strides by 2.8% at most (tau 1000, albedo 0.99999).
 constexpr double kLargestSphere = 128;
 }  // namespace
 

@@ -5,7 +5,9 @@
 
 #include <cmath>
 
+#include "plan.h"
 #include "render.h"
+#include "scene.h"
 
 namespace stf::render {
 namespace {
@@ -119,17 +121,31 @@ TEST(Render, CrossingCollisionsHaveTheStraightPathLimit) {
   EXPECT_EQ(smallest_paying_tau(0.99999, 1e9), 16);
 }
 
+// The spheres a scene planned from the ladder would hold: its radii as stf render sets them.
+std::vector<double> planned_taus(const Medium& m) {
+  const PackLadder ladder = pack_ladder(m);
+  scene::Scene sc;
+  sc.settings.tau_skip = ladder.smallest, sc.settings.tau_ratio = ladder.ratio;
+  sc.media.push_back({"m", m.sigma_s, m.sigma_a, m.g, std::min(m.radius, ladder.smallest / m.sigma_t()),
+                      std::min(m.radius, ladder.largest / m.sigma_t()), 0});
+  std::vector<double> taus;
+  for (const scene::PlanEntry& e : scene::make_plan(sc, ::testing::TempDir() + "/stf_no_cache").entries)
+    if (e.action != "skip") taus.push_back(e.tau);
+  return taus;
+}
+
 // stf render's pack: from the sphere that pays at the stride cost, by 2, up to the medium's tau
-// or tau 128, whichever is smaller.
-TEST(Render, PackLadderStopsAtTheLargestSphereThatPays) {
+// or tau 128, whichever is smaller (the larger ones cost most of the precompute for about 1% of
+// the strides); a medium thinner than the smallest sphere gets none.
+TEST(Render, PackLadderStopsAtTau128) {
   Medium cloud;
   cloud.sigma_s = 99.99, cloud.sigma_a = 0.01, cloud.g = 0.85, cloud.radius = 10;
-  const PackLadder big = pack_ladder(cloud);
-  EXPECT_EQ(big.smallest, 4);
-  EXPECT_EQ(big.largest, 128);
-  EXPECT_EQ(big.ratio, 2);
-  cloud.radius = 0.2;
-  EXPECT_DOUBLE_EQ(pack_ladder(cloud).largest, 20);
+  EXPECT_EQ(pack_ladder(cloud).ratio, 2);
+  EXPECT_EQ(planned_taus(cloud), (std::vector<double>{4, 8, 16, 32, 64, 128}));
+  cloud.radius = 0.2;  // tau 20
+  EXPECT_EQ(planned_taus(cloud), (std::vector<double>{4, 8, 16}));
+  cloud.radius = 0.03;  // tau 3
+  EXPECT_TRUE(planned_taus(cloud).empty());
 }
 
 }  // namespace
