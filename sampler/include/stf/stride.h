@@ -17,7 +17,7 @@
 // Hemispherical lobes (a vMF lobe times its bin's outward factor) have no closed-form inverse:
 // a lobe draw is kept with the probability of its outward factor (at most 1), and redrawn
 // otherwise. That is exact; the tries per kept draw are 1 / (the lobe's mean outward factor).
-// (docs/render.md says which ways to fewer tries were measured, and why none is here.)
+// (docs/render.md says which ways to fewer tries were weighed, and why none is here.)
 #pragma once
 
 #include <algorithm>
