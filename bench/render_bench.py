@@ -17,8 +17,8 @@ two need for the same error (render time only). The pack is built once through a
 and `frames_to_pay_off` is the precompute time over the render time one frame saves.
 
 The bound (docs/render.md, "The bound: ideal strides"): build/bench/stride_bound follows the
-medium's camera paths with ideal strides on the render pack's ladder (its smallest sphere,
-ratio 2) and gives brute force's collisions B, the shell's C and the strides N per hitting
+medium's camera paths with ideal strides on the render pack's ladder (its smallest and largest
+spheres, ratio 2) and gives brute force's collisions B, the shell's C and the strides N per hitting
 path; the stride cost c, in collisions, is measured in the strided run itself (its seconds
 less its collisions at brute force's seconds per collision, per stride), and
 `bound_at_measured_cost` = B / (C + c N), `fraction_of_bound` the speed-up over it.
@@ -57,7 +57,7 @@ from stf_runs import Stf  # noqa: E402
 import render_pair  # noqa: E402
 
 SIGMA_T = 100
-RATIO = 2  # between neighbouring spheres of stf render's packs (kSphereRatio, cli/render_cmd.cpp)
+RATIO = 2  # between neighbouring spheres of stf render's packs (kSphereRatio, render/tracer.cpp)
 DENSE = [(300, 0.9999, 0.85), (1000, 0.9999, 0.85), (1000, 0.99999, 0.85)]
 
 
@@ -95,6 +95,7 @@ def run_medium(stf, spec, a, cache, out):
                 row["precompute_seconds"] = stats["precompute_seconds"]
                 row["spheres"] = stats["spheres"]
                 row["smallest_sphere_tau"] = stats["smallest_sphere_tau"]
+                row["largest_sphere_tau"] = stats["largest_sphere_tau"]
             run = {"method": method, "spp": spp, "seconds": stats["seconds"], "mse": mse(mean, var, ref, ref_var),
                    "mean_variance": float(np.mean(var)), "collisions": stats["collisions"],
                    "strides": stats["strides"], "paths": stats["paths"], "mean_radiance": stats["mean_radiance"]}
@@ -129,7 +130,8 @@ def add_bound(row, br, sr):
     smallest = row.get("smallest_sphere_tau", 0)
     if not os.path.exists(tool) or smallest <= 0:
         return
-    out = subprocess.run([tool, "20000", str(row["tau"]), str(row["albedo"]), str(row["g"]), str(smallest), str(RATIO)],
+    out = subprocess.run([tool, "20000", str(row["tau"]), str(row["albedo"]), str(row["g"]), str(smallest), str(RATIO),
+                          str(row["largest_sphere_tau"])],
                          check=True, capture_output=True, text=True).stdout
     b = json.loads(out)
     row["stride_cost_collisions"] = cost

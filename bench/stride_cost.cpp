@@ -73,7 +73,7 @@ double ns_per_stride(const stf::StrideForm& s, long n, int chains, double& sink)
   return 1e9 * seconds_since(start) / double(n);
 }
 
-// a u + b v
+// a u + b v (the table floor's frame arithmetic, as StrideForm's frames do it)
 Vec3 sum(double a, const Vec3& u, double b, const Vec3& v) {
   return {a * u.x + b * v.x, a * u.y + b * v.y, a * u.z + b * v.z};
 }
@@ -244,10 +244,10 @@ void print_entries(const std::vector<stf::PackEntry>& pack, double& sink) {
 // The tabulated draw's floor at three table sizes, against collisions of the first entry's medium.
 void print_table_floor(const stf::StfModel& model, double& sink) {
   std::printf("], \"table_draw_floor\": [\n");
+  const double collision = ns_per_collision(model.albedo, model.g, 10'000'000, sink);
   for (const std::size_t bytes : {std::size_t(1) << 18, std::size_t(1) << 20, std::size_t(1) << 22}) {
     const TableDrawFloor table(bytes, 3);
     const double draw = ns_per_table_draw(table, 4'000'000, sink);
-    const double collision = ns_per_collision(model.albedo, model.g, 10'000'000, sink);
     std::printf("  {\"table_bytes\": %zu, \"ns_per_stride\": %.1f, \"ns_per_collision\": %.1f, \"stride_cost_collisions\": %.2f}%s\n",
                 table.bytes(), draw, collision, draw / collision, bytes < (std::size_t(1) << 22) ? "," : "");
   }

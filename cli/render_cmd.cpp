@@ -55,8 +55,7 @@ scene::Scene render_scene(const RenderOptions& o) {
   const render::PackLadder ladder = render::pack_ladder(m);
   sc.settings.tau_skip = ladder.smallest;
   sc.settings.tau_ratio = ladder.ratio;
-  sc.media.push_back({"render", m.sigma_s, m.sigma_a, m.g, std::min(m.radius, ladder.smallest / m.sigma_t()),
-                      std::min(m.radius, ladder.largest / m.sigma_t()), 0});
+  sc.media.push_back({"render", m.sigma_s, m.sigma_a, m.g, ladder.radius_min, ladder.radius_max, 0});
   return sc;
 }
 
@@ -128,13 +127,16 @@ std::string shortest(double x) {
   return buf;
 }
 
-std::string stats_json(const render::Image& image, double precompute_seconds, int spheres, double smallest_tau) {
+// `strides` null for brute force.
+std::string stats_json(const render::Image& image, double precompute_seconds, const render::ShellStrides* strides) {
   char buf[512];
   std::snprintf(buf, sizeof buf,
                 "{\"seconds\": %.6g, \"precompute_seconds\": %.6g, \"paths\": %lld, \"collisions\": %lld, "
-                "\"strides\": %lld, \"mean_radiance\": %.10g, \"spheres\": %d, \"smallest_sphere_tau\": %.6g}\n",
+                "\"strides\": %lld, \"mean_radiance\": %.10g, \"spheres\": %d, \"smallest_sphere_tau\": %.6g, "
+                "\"largest_sphere_tau\": %.6g}\n",
                 image.seconds, precompute_seconds, (long long)image.paths, (long long)image.collisions,
-                (long long)image.strides, image.mean_radiance(), spheres, smallest_tau);
+                (long long)image.strides, image.mean_radiance(), strides ? strides->spheres() : 0,
+                strides ? strides->smallest_tau() : 0.0, strides ? strides->largest_tau() : 0.0);
   return buf;
 }
 
@@ -164,13 +166,12 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
 
   double precompute_seconds = 0;
   std::unique_ptr<render::Method> method;
-  int spheres = 0;
-  double smallest_tau = 0;
+  const render::ShellStrides* strided = nullptr;
   if (stf) {
     auto strides = std::make_unique<render::ShellStrides>(
         o.medium, o.pack.empty() ? build_pack(o, s.threads, precompute_seconds) : read_pack_option(o.pack));
-    spheres = strides->spheres(), smallest_tau = strides->smallest_tau();
-    if (!o.pack.empty() && spheres == 0)  // most likely the pack of another medium
+    strided = strides.get();
+    if (!o.pack.empty() && strides->spheres() == 0)  // most likely the pack of another medium
       fail("--pack: " + o.pack + " has no sphere of albedo " + shortest(o.medium.albedo()) + " and g " +
            shortest(o.medium.g));
     method = std::move(strides);
@@ -185,7 +186,7 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
   stop_if_interrupted();
   write_image(image_out, image, o, s.spp, seed);
   if (png_out) write_file(*png_out, render::encode_png(render::tone_map(image.mean), image.width, image.height));
-  if (json_out) write_file(*json_out, stats_json(image, precompute_seconds, spheres, smallest_tau));
+  if (json_out) write_file(*json_out, stats_json(image, precompute_seconds, strided));
   if (!o.quiet)
     std::fprintf(stderr,
                  "stf render: %s, %lld paths in %.3g s (%.3g collisions, %.3g strides per path), mean radiance %.6g "

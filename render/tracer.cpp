@@ -93,7 +93,8 @@ constexpr double kLargestSphere = 128;
 }  // namespace
 
 PackLadder pack_ladder(const Medium& m) {
-  return {smallest_paying_tau(m.g, kStrideCost), std::min(m.tau(), kLargestSphere), kSphereRatio};
+  const double smallest = smallest_paying_tau(m.g, kStrideCost), sigma_t = m.sigma_t();
+  return {smallest, kSphereRatio, std::min(m.radius, smallest / sigma_t), std::min(m.radius, kLargestSphere / sigma_t)};
 }
 
 std::vector<PackEntry> entries_for(const Medium& m, const std::vector<PackEntry>& pack) {

@@ -68,6 +68,7 @@ class ShellStrides final : public Method {
   double radiance(const Vec3& entry, const Vec3& direction, PixelRng& rng, PathCounters& counters) const override;
   int spheres() const { return spheres_.size(); }
   double smallest_tau() const { return spheres_.size() > 0 ? spheres_.tau(0) : 0.0; }
+  double largest_tau() const { return spheres_.size() > 0 ? spheres_.tau(spheres_.size() - 1) : 0.0; }
 
  private:
   // The largest sphere that fits at x: sphere i (ascending radius) fits where |x| <= R - r_i,
@@ -89,9 +90,10 @@ double crossing_collisions(double tau, double g, int paths = 20000);
 double smallest_paying_tau(double g, double stride_cost);
 
 // The spheres of `stf render`'s pack for a medium (docs/render.md, "Ladders from the stride
-// cost"): from `smallest` by `ratio` up to the medium's optical radius, but none above `largest`.
+// cost"): optical radii from `smallest` by `ratio`, with radii (in the medium's units) in
+// [radius_min, radius_max]: up to the medium's radius or tau 128, whichever is smaller.
 struct PackLadder {
-  double smallest, largest, ratio;
+  double smallest, ratio, radius_min, radius_max;
 };
 PackLadder pack_ladder(const Medium& m);
 

@@ -105,7 +105,7 @@ TEST_F(Render, ThinMediumGivesTheBruteForceImage) {
 }
 
 // Without --pack the medium's pack is built into the cache once; the next render of the medium
-// takes it from there (the same spheres: the same image) and reports almost no precompute.
+// takes it from there: the same spheres, so the same image, and the cache's files untouched.
 TEST_F(Render, SecondRenderReusesTheCachedPack) {
   const std::string args = "render --sigma-s 4.9 --sigma-a 0.1 --g 0.5 --width 16 --height 16 --spp 8 --quiet "
                            "--method stf --tolerance 0.05 --cache " + out("cache");
