@@ -38,7 +38,12 @@ void read_medium(const H5::H5File& file, Table& t) {
   } else {
     const double none = std::nan("");
     t.medium = {none, none, none, none};
+    return;
   }
+  const Medium& m = t.medium;
+  // A NaN would read as "no medium" (Table::has_medium) and be dropped on the next write.
+  if (!(std::isfinite(m.sigma_s) && std::isfinite(m.sigma_a) && std::isfinite(m.g) && std::isfinite(m.radius)))
+    throw std::runtime_error("the medium's attributes must be finite numbers");
 }
 
 // Every attribute is optional (docs/formats.md, "Tables stf did not make"); totals a file lacks

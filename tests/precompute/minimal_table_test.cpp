@@ -119,5 +119,25 @@ TEST(MinimalTable, FourDatasetsAloneReadAsATable) {
   EXPECT_EQ(t.weight(), weight);
 }
 
+// A medium given with a NaN is refused: read as no medium, it would be dropped on the next write.
+TEST(MinimalTable, ANonFiniteMediumIsRefused) {
+  Table layout;
+  lay_out(layout, *make_grid("healpix:2"), 5);
+  const std::vector<double> weight(std::size_t(layout.alpha_bins * layout.cells), 1.0);
+  const std::string path = ::testing::TempDir() + "nan_medium_" + std::to_string(::getpid()) + ".h5";
+  replace_file(path, minimal_table_file(layout, weight, [](H5::H5File& f) {
+                 h5::put_attr(f, "sigma_s", std::nan(""));
+                 h5::put_attr(f, "sigma_a", 0.1);
+                 h5::put_attr(f, "g", 0.0);
+               }));
+  try {
+    read_table(path);
+    ADD_FAILURE() << "a NaN sigma_s was read";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("finite"), std::string::npos) << e.what();
+  }
+  std::remove(path.c_str());
+}
+
 }  // namespace
 }  // namespace stf
