@@ -130,9 +130,7 @@ std::vector<double> lobe_cell_probabilities(const std::vector<VmfLobe>& lobes, c
                                             double counts, const OutwardFactors* outward, const BinTurn* turn,
                                             Tails tails) {
   const std::vector<double> every_cell(levels.centres().size(), 1.0);
-  LobeIntegrator cells(levels, every_cell, outward, turn, counts);
-  if (tails == Tails::kKeep) cells.keep_tails();
-  return cells.probabilities(lobes);
+  return LobeIntegrator(levels, every_cell, outward, turn, counts, tails).probabilities(lobes);
 }
 
 std::vector<double> density_cell_probabilities(const std::function<double(const Vec3&)>& density,
@@ -161,8 +159,8 @@ double poisson_deviance(const std::vector<double>& counts, const std::vector<dou
 }
 
 LobeIntegrator::LobeIntegrator(const QuadratureLevels& levels, const std::vector<double>& counts,
-                               const OutwardFactors* outward, const BinTurn* turn, double escapes)
-    : levels_(levels), outward_(outward), row_of_cell_(counts.size(), -1) {
+                               const OutwardFactors* outward, const BinTurn* turn, double accurate_for, Tails tails)
+    : levels_(levels), outward_(outward), row_of_cell_(counts.size(), -1), cut_efolds_(tails == Tails::kKeep ? std::numeric_limits<double>::infinity() : 40) {
   if (turn && turn->rate != 0) turn_nodes(*turn);
   for (std::size_t c = 0; c < counts.size(); ++c) {
     total_ += counts[c];
@@ -171,8 +169,8 @@ LobeIntegrator::LobeIntegrator(const QuadratureLevels& levels, const std::vector
       count_.push_back(counts[c]);
     }
   }
-  if (escapes >= 0) total_ = escapes;
-  widen_above_ = 0.6 / std::sqrt(std::max(total_, 1.0));
+  accurate_for_ = accurate_for >= 0 ? accurate_for : total_;
+  widen_above_ = 0.6 / std::sqrt(std::max(accurate_for_, 1.0));
 }
 
 std::vector<double> LobeIntegrator::probabilities(const std::vector<VmfLobe>& lobes) const {
@@ -226,7 +224,7 @@ void LobeIntegrator::flush(PointBatch& b, bool derivatives, const LobeIntegrals&
 void LobeIntegrator::integrate_lobe(const Vec3& mean, double kappa, PointFactor factor,
                                     const LobeIntegrals& out) const {
   const bool derivatives = out.d_theta != nullptr;
-  const int level = levels_.level_for_kappa(kappa, total_);
+  const int level = levels_.level_for_kappa(kappa, accurate_for_);
   const CellQuadrature& q = levels_.at(level);
   factor.for_level(level);
   const double max_sub_cell = levels_.max_sub_cell(level);

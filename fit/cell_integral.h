@@ -68,9 +68,10 @@ class QuadratureLevels {
   double cell_solid_angle_;  // the largest cell's
 };
 
-// Whether cells far from every lobe keep their small mass (LobeIntegrator::keep_tails): where
-// ratios of cell probabilities are taken (KL, deviances, chi^2), not where they are mixed with a
-// floor far above it (held-out scores).
+// Whether cells far from every lobe keep their small mass: where ratios of cell probabilities
+// are taken (KL, deviances, chi^2), not where they are mixed with a floor far above it (held-out
+// scores). kKeep integrates every point however far below a lobe's peak; kCut skips points beyond
+// 40 e-folds, which changes no sum a double holds but leaves far cells at exactly 0.
 enum class Tails { kKeep, kCut };
 
 // Per-cell probabilities of a vMF mixture (weights summing to 1) over every cell of the grid,
@@ -108,10 +109,10 @@ OutwardFactors outward_cell_means(const QuadratureLevels& levels, double a0, dou
 class LobeIntegrator {
  public:
   // `counts` per cell of the grid; `outward` (hemispherical lobes) and `turn` may be null. Lobes
-  // are integrated as accurately as `escapes` escapes need (levels, widening); negative: the
-  // counts' sum.
+  // are integrated as accurately as `accurate_for` escapes need (levels, widening; negative: the
+  // counts' sum), their far points kept or cut by `tails`.
   LobeIntegrator(const QuadratureLevels& levels, const std::vector<double>& counts, const OutwardFactors* outward,
-                 const BinTurn* turn, double escapes = -1);
+                 const BinTurn* turn, double accurate_for = -1, Tails tails = Tails::kCut);
 
   // Where one lobe's integrals go: its masses on the rows (and, with derivatives, their
   // derivatives by log kappa and by the mean), and its totals over the sphere.
@@ -134,10 +135,6 @@ class LobeIntegrator {
           dm(needed && derivatives ? 3 * std::size_t(rows) : 0, 0.0), marked(needed ? std::size_t(rows) : 0, 0) {}
   };
   CopyScratch make_scratch(bool derivatives) const { return CopyScratch(rows(), derivatives, !nodes_.empty()); }
-
-  // Integrates every point however far below a lobe's peak; by default points beyond 40 e-folds
-  // are skipped, which changes no sum a double holds but leaves far cells at exactly 0.
-  void keep_tails() { cut_efolds_ = std::numeric_limits<double>::infinity(); }
 
   int rows() const { return int(count_.size()); }
   const std::vector<double>& row_counts() const { return count_; }
@@ -208,9 +205,10 @@ class LobeIntegrator {
   double span_ = 0;                       // the turn across the bin
   std::vector<int> row_of_cell_;
   std::vector<double> count_;
-  double total_ = 0;        // the escapes the integrals are as accurate as
-  double widen_above_ = 0;  // kappa a / 12 beyond which lobes are widened
-  double cut_efolds_ = 40;  // points farther below a lobe's peak are skipped
+  double total_ = 0;         // the counts' sum
+  double accurate_for_ = 0;  // the escapes the integrals are as accurate as
+  double widen_above_ = 0;   // kappa a / 12 beyond which lobes are widened
+  double cut_efolds_ = 40;   // points farther below a lobe's peak are skipped
 };
 
 }  // namespace stf::fit

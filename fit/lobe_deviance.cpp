@@ -49,6 +49,15 @@ PoissonDeviance::PoissonDeviance(const QuadratureLevels& levels, const std::vect
   for (int k = 0; k < lobes; ++k) mutable_parameter_block_sizes()->push_back(3);
 }
 
+std::vector<double> lobe_weights(std::vector<double> logits) {
+  for (double& l : logits) l = std::clamp(l, -kMaxLogit, kMaxLogit);
+  const double max_logit = *std::max_element(logits.begin(), logits.end());
+  double sum = 0;
+  for (double& l : logits) sum += (l = std::exp(l - max_logit));
+  for (double& w : logits) w /= sum;
+  return logits;
+}
+
 PoissonDeviance::Lobes PoissonDeviance::integrate(double const* const* params, bool derivatives) const {
   const int K = lobes_, rows = cells_.rows();
   Lobes l;
@@ -58,9 +67,7 @@ PoissonDeviance::Lobes PoissonDeviance::integrate(double const* const* params, b
     logit[k] = std::clamp(params[0][k], -kMaxLogit, kMaxLogit), l.free_logit[k] = logit[k] == params[0][k];
     log_kappa[k] = std::clamp(params[1][k], min_log_kappa_, max_log_kappa_), l.free_kappa[k] = log_kappa[k] == params[1][k];
   }
-  double max_logit = *std::max_element(logit.begin(), logit.end()), sum = 0;
-  for (int k = 0; k < K; ++k) sum += (l.w[k] = std::exp(logit[k] - max_logit));
-  for (double& v : l.w) v /= sum;
+  l.w = lobe_weights(logit);
 
   // Levenberg-Marquardt asks for the residuals alone at every trial step (about half the
   // calls): the derivatives are then not accumulated.

@@ -14,6 +14,10 @@ namespace stf::fit {
 
 inline constexpr double kMaxLogit = 40;  // lobe weights below e^-40 of the heaviest are zero to a double
 
+// Lobe weights from logits as the deviance uses them: clamped to [-kMaxLogit, kMaxLogit], then
+// the softmax.
+std::vector<double> lobe_weights(std::vector<double> logits);
+
 // Residuals: one per cell with counts, and one for all empty cells together (their deviance
 // is 2 sum mu = 2 N (1 - sum of the other cells' probabilities)). Parameter blocks: softmax
 // logits [K], log kappa [K], then the K mean directions [3] each (on SphereManifold<3>).

@@ -126,18 +126,13 @@ ceres::Solver::Options solver_options(const VmfFitOptions& options) {
 }
 
 // The lobes of the solved parameters, as the deviance saw them: clamped to their bounds.
-std::vector<VmfLobe> solved_lobes(std::vector<double> logits, std::vector<double> log_kappa,
+std::vector<VmfLobe> solved_lobes(const std::vector<double>& logits, const std::vector<double>& log_kappa,
                                   const std::vector<double>& means, const VmfFitOptions& options) {
-  const std::size_t K = logits.size();
-  for (std::size_t k = 0; k < K; ++k) {
-    logits[k] = std::clamp(logits[k], -kMaxLogit, kMaxLogit);
-    log_kappa[k] = std::clamp(log_kappa[k], std::log(options.min_kappa), std::log(options.max_kappa));
-  }
-  double max_logit = *std::max_element(logits.begin(), logits.end()), sum = 0;
-  for (std::size_t k = 0; k < K; ++k) sum += std::exp(logits[k] - max_logit);
+  const std::vector<double> weight = lobe_weights(logits);
   std::vector<VmfLobe> lobes;
-  for (std::size_t k = 0; k < K; ++k)
-    lobes.push_back({std::exp(logits[k] - max_logit) / sum, std::exp(log_kappa[k]),
+  for (std::size_t k = 0; k < logits.size(); ++k)
+    lobes.push_back({weight[k],
+                     std::exp(std::clamp(log_kappa[k], std::log(options.min_kappa), std::log(options.max_kappa))),
                      normalize({means[3 * k], means[3 * k + 1], means[3 * k + 2]})});
   return lobes;
 }

@@ -2,7 +2,6 @@
 
 #include <chrono>
 #include <condition_variable>
-#include <functional>
 #include <mutex>
 #include <algorithm>
 #include <cmath>
@@ -141,10 +140,14 @@ class Driver {
   std::chrono::steady_clock::time_point last_save_ = std::chrono::steady_clock::now();
 };
 
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
 // Runs the driver's chunks on `threads` workers, reporting progress every 100 ms (waking at
 // once when they are done); false if a chunk failed or the run was cancelled.
 bool run_workers(Driver& driver, int threads, const std::atomic<bool>* cancel, const ProgressFn& progress,
-                 const std::function<double()>& seconds) {
+                 std::chrono::steady_clock::time_point start) {
   int running = threads;  // guarded by `mutex`
   std::mutex mutex;
   std::condition_variable finished;
@@ -159,7 +162,7 @@ bool run_workers(Driver& driver, int threads, const std::atomic<bool>* cancel, c
   for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
   for (std::unique_lock<std::mutex> lock(mutex); running > 0;) {
     if (finished.wait_for(lock, std::chrono::milliseconds(100), [&] { return running == 0; })) break;
-    if (progress) progress(driver.paths_done(), driver.total_paths(), seconds());
+    if (progress) progress(driver.paths_done(), driver.total_paths(), seconds_since(start));
   }
   for (auto& th : pool) th.join();
   return !stopped && !(cancel && cancel->load());
@@ -210,14 +213,11 @@ std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& 
   const ChunkRange range = chunk_range(s);
   int threads = s.threads > 0 ? s.threads : int(std::max(1u, std::thread::hardware_concurrency()));
   threads = int(std::max<std::int64_t>(1, std::min<std::int64_t>(threads, range.last - range.first)));
-  const std::function<double()> seconds = [&] {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  };
-  if (!run_workers(driver, threads, cancel, progress, seconds)) return std::nullopt;
-  if (progress) progress(driver.total_paths(), driver.total_paths(), seconds());
+  if (!run_workers(driver, threads, cancel, progress, start)) return std::nullopt;
+  if (progress) progress(driver.total_paths(), driver.total_paths(), seconds_since(start));
   Table table = tally_table(driver.state().tally, medium, s, range, *grid);
   table.paths = driver.total_paths();
-  table.runtime_s = seconds();
+  table.runtime_s = seconds_since(start);
   return table;
 }
 
