@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 namespace stf::fit {
 
@@ -39,9 +40,8 @@ struct PoissonDeviance::Lobes {
   std::vector<double> total, total_theta, total_mean;
 };
 
-PoissonDeviance::PoissonDeviance(const QuadratureLevels& levels, const std::vector<double>& counts, int lobes,
-                                 const OutwardFactors* outward, double min_kappa, double max_kappa, const BinTurn* turn)
-    : cells_(levels, counts, outward, turn), lobes_(lobes), min_log_kappa_(std::log(min_kappa)),
+PoissonDeviance::PoissonDeviance(LobeIntegrator cells, int lobes, double min_kappa, double max_kappa)
+    : cells_(std::move(cells)), lobes_(lobes), min_log_kappa_(std::log(min_kappa)),
       max_log_kappa_(std::log(max_kappa)) {
   set_num_residuals(cells_.rows() + 1);
   mutable_parameter_block_sizes()->push_back(lobes);

@@ -31,8 +31,9 @@ std::vector<double> lobe_weights(std::vector<double> logits);
 // search, with two or three more Jacobians, to every iteration.)
 class PoissonDeviance final : public ceres::CostFunction {
  public:
-  PoissonDeviance(const QuadratureLevels& levels, const std::vector<double>& counts, int lobes,
-                  const OutwardFactors* outward, double min_kappa, double max_kappa, const BinTurn* turn = nullptr);
+  // The deviance of `lobes` lobes over the cells `cells` integrates (its counts, outward factors
+  // and turn).
+  PoissonDeviance(LobeIntegrator cells, int lobes, double min_kappa, double max_kappa);
   bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override;
 
  private:

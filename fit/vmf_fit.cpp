@@ -152,7 +152,8 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
   std::vector<double*> blocks = {logits.data(), log_kappa.data()};
   for (int k = 0; k < K; ++k) blocks.push_back(&means[3 * k]);
   problem.AddResidualBlock(
-      new PoissonDeviance(levels, counts, K, options.outward, options.min_kappa, options.max_kappa, options.turn),
+      new PoissonDeviance(LobeIntegrator(levels, counts, options.outward, options.turn), K, options.min_kappa,
+                          options.max_kappa),
       nullptr, blocks);
   // Slopes of the logits, the log kappas and the turns (sloped pools), from none.
   std::vector<double> slopes(options.sloped && !options.pooled.empty() ? 3 * std::size_t(K) : 0, 0.0);
@@ -160,8 +161,8 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
   for (std::size_t i = 0; i < slopes.size(); i += std::size_t(K)) pooled_blocks.push_back(&slopes[i]);
   for (const PooledBin& n : options.pooled)
     problem.AddResidualBlock(
-        new TurnedDeviance(std::make_unique<PoissonDeviance>(levels, *n.counts, K, n.outward, options.min_kappa,
-                                                             options.max_kappa, n.turn),
+        new TurnedDeviance(std::make_unique<PoissonDeviance>(LobeIntegrator(levels, *n.counts, n.outward, n.turn), K,
+                                                             options.min_kappa, options.max_kappa),
                            K, n.angle, n.weight, !slopes.empty(), n.offset),
         nullptr, pooled_blocks);
   ceres::SphereManifold<3> sphere;

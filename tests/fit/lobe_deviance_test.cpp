@@ -96,24 +96,24 @@ class LobeDeviance : public ::testing::Test {
 };
 
 TEST_F(LobeDeviance, PlainLobesMatchFiniteDifferences) {
-  EXPECT_LT(jacobian_error(PoissonDeviance(levels, counts, 2, nullptr, 1e-6, 1e8), false), 1e-6);
+  EXPECT_LT(jacobian_error(PoissonDeviance(LobeIntegrator(levels, counts, nullptr, nullptr), 2, 1e-6, 1e8), false), 1e-6);
 }
 
 TEST_F(LobeDeviance, HemisphericalLobesMatchFiniteDifferences) {
-  EXPECT_LT(jacobian_error(PoissonDeviance(levels, counts, 2, &outward, 1e-6, 1e8), false), 1e-6);
+  EXPECT_LT(jacobian_error(PoissonDeviance(LobeIntegrator(levels, counts, &outward, nullptr), 2, 1e-6, 1e8), false), 1e-6);
 }
 
 TEST_F(LobeDeviance, TurningBinMatchesFiniteDifferences) {
-  EXPECT_LT(jacobian_error(PoissonDeviance(levels, counts, 2, &outward, 1e-6, 1e8, &turn), false), 1e-6);
+  EXPECT_LT(jacobian_error(PoissonDeviance(LobeIntegrator(levels, counts, &outward, &turn), 2, 1e-6, 1e8), false), 1e-6);
 }
 
 TEST_F(LobeDeviance, PooledNeighbourMatchesFiniteDifferences) {
-  auto inner = std::make_unique<PoissonDeviance>(levels, counts, 2, &outward, 1e-6, 1e8, &turn);
+  auto inner = std::make_unique<PoissonDeviance>(LobeIntegrator(levels, counts, &outward, &turn), 2, 1e-6, 1e8);
   EXPECT_LT(jacobian_error(TurnedDeviance(std::move(inner), 2, 0.1, 0.5), false), 1e-6);
 }
 
 TEST_F(LobeDeviance, SlopedPoolMatchesFiniteDifferences) {
-  auto inner = std::make_unique<PoissonDeviance>(levels, counts, 2, &outward, 1e-6, 1e8, &turn);
+  auto inner = std::make_unique<PoissonDeviance>(LobeIntegrator(levels, counts, &outward, &turn), 2, 1e-6, 1e8);
   EXPECT_LT(jacobian_error(TurnedDeviance(std::move(inner), 2, 0.1, 0.5, true, -2), true), 1e-6);
 }
 
@@ -135,7 +135,7 @@ TEST_F(LobeDeviance, AWrongJacobianIsCaught) {
    private:
     const ceres::CostFunction& inner_;
   };
-  const PoissonDeviance deviance(levels, counts, 2, nullptr, 1e-6, 1e8);
+  const PoissonDeviance deviance(LobeIntegrator(levels, counts, nullptr, nullptr), 2, 1e-6, 1e8);
   EXPECT_GT(jacobian_error(Flipped(deviance), false), 1e-2);
 }
 

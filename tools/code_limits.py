@@ -1,0 +1,154 @@
+#!/usr/bin/python3
+"""The code's size limits (README, "Code"), checked: no source file over --max-file lines,
+no function over --max-function lines (signature to closing brace) or with more than
+--max-params parameters. Prints one line per breach and exits 1 if there is one; with --list,
+every function with its lines and parameters.
+
+Usage: tools/code_limits.py [--max-file 400] [--max-function 60] [--max-params 6] [--list] DIR...
+
+A small scanner, not a compiler: comments, strings and preprocessor lines are blanked, then a
+brace opens a function body where the text before it (since the last ';', '{' or '}') ends in
+a parameter list, its qualifiers or a constructor's initialisers, at namespace or class scope.
+Lambdas and local classes count towards the function they are in.
+"""
+import argparse
+import os
+import re
+import sys
+
+SOURCE = (".h", ".cpp")
+TYPE_KEYWORDS = re.compile(r"\b(class|struct|union|enum)\b")
+FUNCTION_TAIL = re.compile(r"\)\s*(const\b|override\b|final\b|noexcept\b|mutable\b|&|\s)*$")
+
+
+def blank_out(text):
+    """The text with comments, string and char literals and preprocessor lines replaced by
+    spaces (newlines kept, so offsets map to the same lines)."""
+    out, i, n = [], 0, len(text)
+    while i < n:
+        c = text[i]
+        if text.startswith("//", i) or (c == "#" and (i == 0 or text[i - 1] == "\n" or text[:i].rstrip(" \t").endswith("\n"))):
+            j = text.find("\n", i)
+            j = n if j < 0 else j
+            while c == "#" and j > 0 and text[j - 1] == "\\":  # continued macro lines
+                j = text.find("\n", j + 1)
+                j = n if j < 0 else j
+            out.append(re.sub(r"[^\n]", " ", text[i:j]))
+            i = j
+        elif text.startswith("/*", i):
+            j = text.find("*/", i + 2)
+            j = n if j < 0 else j + 2
+            out.append(re.sub(r"[^\n]", " ", text[i:j]))
+            i = j
+        elif c in "\"'":
+            j = i + 1
+            while j < n and text[j] != c:
+                j += 2 if text[j] == "\\" else 1
+            out.append(c + " " * (min(j, n - 1) - i - 1) + c)
+            i = j + 1
+        else:
+            out.append(c)
+            i += 1
+    return "".join(out)
+
+
+def split_initialisers(head):
+    """The declaration without a constructor's initialiser list (a single ':' after the ')')."""
+    depth = 0
+    for k, c in enumerate(head):
+        depth += c in "(<[" and 1 or (-1 if c in ")>]" else 0)
+        if c == ":" and depth == 0 and head[k - 1:k] != ":" and head[k + 1:k + 2] != ":" and ")" in head[:k]:
+            return head[:k]
+    return head
+
+
+def parameter_count(head):
+    """Parameters of the last top-level parenthesised group of a declaration."""
+    head = split_initialisers(head).split("->")[0].rstrip()
+    end = head.rfind(")")
+    depth, start = 0, -1
+    for k in range(end, -1, -1):
+        depth += {")": 1, "(": -1}.get(head[k], 0)
+        if depth == 0:
+            start = k
+            break
+    inner = head[start + 1:end].strip()
+    if not inner or inner == "void":
+        return 0
+    depth, commas = 0, 0
+    for c in inner:
+        depth += {"(": 1, "<": 1, "[": 1, "{": 1, ")": -1, ">": -1, "]": -1, "}": -1}.get(c, 0)
+        commas += c == "," and depth == 0
+    return commas + 1
+
+
+def is_function_head(head):
+    head = split_initialisers(head).split("->")[0].strip() if "(" in head else head
+    return bool(head) and "=" not in head.split("(")[0] and FUNCTION_TAIL.search(head) is not None
+
+
+def functions(path):
+    """(name line, first line, last line, parameters) of every function defined in the file."""
+    text = blank_out(open(path, encoding="utf-8").read())
+    found, scopes, last_stop = [], [], 0  # scopes: 'ns', 'type', 'fn', 'other'
+    for k, c in enumerate(text):
+        if c == ";":
+            last_stop = k + 1
+        elif c == "{":
+            head = text[last_stop:k]
+            inside_fn = any(s[0] == "fn" for s in scopes)
+            if re.search(r"\bnamespace\b", head) or re.search(r'\bextern\b', head):
+                kind = "ns"
+            elif not inside_fn and is_function_head(head.strip()):
+                kind = "fn"
+                first = text.count("\n", 0, last_stop + len(head) - len(head.lstrip())) + 1
+                scopes.append(("fn", first, parameter_count(head.strip()), head.strip()))
+                last_stop = k + 1
+                continue
+            elif TYPE_KEYWORDS.search(head) and not inside_fn:
+                kind = "type"
+            else:
+                kind = "other"
+            scopes.append((kind,))
+            last_stop = k + 1
+        elif c == "}":
+            if scopes:
+                s = scopes.pop()
+                if s[0] == "fn":
+                    name = re.sub(r"\s+", " ", split_initialisers(s[3]).split("(")[0]).split(" ")[-1]
+                    found.append((name, s[1], text.count("\n", 0, k) + 1, s[2]))
+            last_stop = k + 1
+    return found
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("dirs", nargs="+")
+    ap.add_argument("--max-file", type=int, default=400)
+    ap.add_argument("--max-function", type=int, default=60)
+    ap.add_argument("--max-params", type=int, default=6)
+    ap.add_argument("--list", action="store_true")
+    a = ap.parse_args()
+    breaches = 0
+    for d in a.dirs:
+        for f in sorted(os.listdir(d)):
+            if not f.endswith(SOURCE):
+                continue
+            path = os.path.join(d, f)
+            lines = open(path, encoding="utf-8").read().count("\n")
+            if lines > a.max_file:
+                print(f"{path}: {lines} lines (limit {a.max_file})")
+                breaches += 1
+            for name, first, last, params in functions(path):
+                length = last - first + 1
+                if a.list:
+                    print(f"{path}:{first}: {name} {length} lines, {params} parameters")
+                if length > a.max_function or params > a.max_params:
+                    print(f"{path}:{first}: {name}: {length} lines, {params} parameters "
+                          f"(limits {a.max_function} and {a.max_params})")
+                    breaches += 1
+    return 1 if breaches else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
