@@ -39,10 +39,17 @@ std::vector<double> cell_density(const Table& t, int bin) {
   return density;
 }
 
+// What one panel shows: a density per cell of the table's grid, and its title.
+struct Panel {
+  std::vector<double> density;
+  std::string title;
+};
+
 // One panel's data: the density raster over (theta, phi) from each pixel's own cell, and the
 // cell centres with their densities (what the thesis interpolated).
-void write_panel(H5::H5File& file, int index, const Table& t, const DirectionGrid& grid,
-                 const std::vector<double>& density, const std::string& title, int width) {
+void write_panel(H5::H5File& file, int index, const Table& t, const DirectionGrid& grid, const Panel& panel,
+                 int width) {
+  const std::vector<double>& density = panel.density;
   const int height = width / 2;
   std::vector<double> raster(std::size_t(width) * height);
   for (int r = 0; r < height; ++r) {
@@ -64,7 +71,7 @@ void write_panel(H5::H5File& file, int index, const Table& t, const DirectionGri
   h5::put_dataset(g, "cell_theta", {hsize_t(t.cells)}, theta.data());
   h5::put_dataset(g, "cell_phi", {hsize_t(t.cells)}, phi.data());
   h5::put_dataset(g, "cell_density", {hsize_t(t.cells)}, density.data());
-  h5::put_attr(g, "title", title);
+  h5::put_attr(g, "title", panel.title);
 }
 
 std::string describe(const Table& t, int bin, const std::string& what) {
@@ -96,7 +103,7 @@ void run_plot(const PlotOptions& o) {
       Table t = read_table(o.tables[i]);
       std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
       int bin = alpha_bin(t, alpha);
-      write_panel(file, int(i), t, *grid, cell_density(t, bin), describe(t, bin, "table"), o.width);
+      write_panel(file, int(i), t, *grid, {cell_density(t, bin), describe(t, bin, "table")}, o.width);
       stop_if_interrupted();
     }
     if (!o.model.empty()) {
@@ -117,8 +124,8 @@ void run_plot(const PlotOptions& o) {
       std::vector<double> density = binned->bin(bin, std::ref(smooth)).second;
       for (std::int64_t c = 0; c < t.cells; ++c) density[c] /= t.solid_angle[c];
       h5::put_attr(file, "side_by_side", 1);
-      write_panel(file, int(o.tables.size()), t, *grid, density,
-                  describe(t, bin, "model " + o.model.substr(o.model.find_last_of('/') + 1)), o.width);
+      write_panel(file, int(o.tables.size()), t, *grid,
+                  {density, describe(t, bin, "model " + o.model.substr(o.model.find_last_of('/') + 1))}, o.width);
     }
   }
   write_durably(data.path(), memory.bytes(), "the plot's data " + data.path());

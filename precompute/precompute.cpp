@@ -105,7 +105,7 @@ class Driver {
     ChunkTally chunk;
     for (std::size_t i; (i = next_.fetch_add(1)) < todo_.size();) {
       const std::int64_t c = todo_[i];
-      if (!walk_chunk(setup_, std::uint64_t(s_.seed), std::uint64_t(c), c * per_chunk_, paths_of(c), chunk, control))
+      if (!walk_chunk(setup_, {std::uint64_t(s_.seed), std::uint64_t(c), c * per_chunk_, paths_of(c)}, chunk, control))
         return false;
       std::lock_guard<std::mutex> lock(mutex_);
       chunk.add_to(state_.tally);

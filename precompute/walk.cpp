@@ -325,23 +325,22 @@ class EscapeBatch {
 
 }  // namespace
 
-bool walk_chunk(const WalkSetup& setup, std::uint64_t seed, std::uint64_t chunk,
-                std::int64_t first_path, std::int64_t count, ChunkTally& tally,
-                const WalkControl& control) {
+bool walk_chunk(const WalkSetup& setup, const ChunkPaths& chunk, ChunkTally& tally, const WalkControl& control) {
+  const std::int64_t count = chunk.count;
   const StepConstants k = make_constants(setup);
   EscapeBatch escapes(setup, tally);
   Lanes L;
   std::int64_t next = 0;
   int in_flight = 0;
   for (int i = 0; i < kLanes; ++i) {
-    Xoshiro128State st = seed_stream(seed, chunk * kLanes + std::uint64_t(i));
+    Xoshiro128State st = seed_stream(chunk.seed, chunk.index * kLanes + std::uint64_t(i));
     L.s0[i] = st.s[0];
     L.s1[i] = st.s[1];
     L.s2[i] = st.s[2];
     L.s3[i] = st.s[3];
     L.active[i] = 0;
     if (next < count) {
-      launch(L, i, first_path + next++);
+      launch(L, i, chunk.first_path + next++);
       ++in_flight;
     } else {
       launch(L, i, 0);
@@ -370,7 +369,7 @@ bool walk_chunk(const WalkSetup& setup, std::uint64_t seed, std::uint64_t chunk,
       tally.collisions += L.collisions[i];
       ++finished_since_report;
       if (next < count) {
-        launch(L, i, first_path + next++);
+        launch(L, i, chunk.first_path + next++);
       } else {
         L.active[i] = 0;
         --in_flight;

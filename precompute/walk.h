@@ -118,10 +118,15 @@ struct WalkControl {
   std::atomic<std::int64_t>* paths_done = nullptr;  // progress, updated every few paths
 };
 
-// Walks paths [first_path, first_path + count) with the random streams of `chunk`, adding
-// to `tally`. Returns false if it was cancelled (the tally is then incomplete).
-bool walk_chunk(const WalkSetup& setup, std::uint64_t seed, std::uint64_t chunk,
-                std::int64_t first_path, std::int64_t count, ChunkTally& tally,
-                const WalkControl& control = {});
+// The paths [first_path, first_path + count) of a run seeded `seed`, drawn from the random
+// streams of its chunk `index`.
+struct ChunkPaths {
+  std::uint64_t seed = 0, index = 0;
+  std::int64_t first_path = 0, count = 0;
+};
+
+// Walks a chunk's paths, adding to `tally`. Returns false if it was cancelled (the tally is
+// then incomplete).
+bool walk_chunk(const WalkSetup& setup, const ChunkPaths& chunk, ChunkTally& tally, const WalkControl& control = {});
 
 }  // namespace stf

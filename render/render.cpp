@@ -14,10 +14,12 @@ struct PixelResult {
   double mean = 0, variance_of_mean = 0;
 };
 
-// One pixel's samples, jittered over its area, with Welford's running mean and variance.
-PixelResult render_pixel(const Medium& medium, const Method& method, const ImageSettings& s, int px, int py,
+// One pixel's samples (pixels numbered row by row), jittered over its area, with Welford's
+// running mean and variance.
+PixelResult render_pixel(const Medium& medium, const Method& method, const ImageSettings& s, std::int64_t pixel,
                          PathCounters& counters, const std::atomic<bool>* cancel) {
-  PixelRng rng(s.seed, std::uint64_t(py) * std::uint64_t(s.width) + std::uint64_t(px));
+  const int px = int(pixel % s.width), py = int(pixel / s.width);
+  PixelRng rng(s.seed, std::uint64_t(pixel));
   double mean = 0, m2 = 0;
   for (std::int64_t k = 0; k < s.spp; ++k) {
     if (cancel && cancel->load(std::memory_order_relaxed)) return {};
@@ -68,7 +70,7 @@ Image render(const Medium& medium, const Method& method, const ImageSettings& s,
   auto worker = [&] {
     PathCounters counters;
     for (std::int64_t p; !stop() && (p = next.fetch_add(1)) < pixels;) {
-      const PixelResult r = render_pixel(medium, method, s, int(p % s.width), int(p / s.width), counters, cancel);
+      const PixelResult r = render_pixel(medium, method, s, p, counters, cancel);
       image.mean[std::size_t(p)] = r.mean;
       image.variance_of_mean[std::size_t(p)] = r.variance_of_mean;
       done.fetch_add(1);
