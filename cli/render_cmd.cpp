@@ -61,13 +61,20 @@ scene::Scene render_scene(const RenderOptions& o) {
 
 // Builds (or finds in the cache) the pack for the medium; returns its entries and the
 // seconds spent.
-std::vector<PackEntry> build_pack(const RenderOptions& o, int threads, double& seconds) {
+// What building the render's pack took: its seconds, and how many spheres were walked and fitted
+// (the others came from the cache).
+struct PackBuild {
+  double seconds = 0;
+  int spheres_computed = 0;
+};
+
+std::vector<PackEntry> build_pack(const RenderOptions& o, int threads, PackBuild& build) {
   const auto start = std::chrono::steady_clock::now();
   const scene::Scene sc = render_scene(o);
   const std::string cache = cache_folder(o);
   const scene::Plan plan = scene::make_plan(sc, cache);
   try {
-    scene::compute_entries(plan, threads,
+    build.spheres_computed = scene::compute_entries(plan, threads,
                            [&](int i, int n, const scene::PlanEntry& e) {
                              if (!o.quiet)
                                std::fprintf(stderr, "stf render: precomputing [%d/%d] tau %g albedo %g g %g\n", i + 1,
@@ -88,7 +95,7 @@ std::vector<PackEntry> build_pack(const RenderOptions& o, int threads, double& s
   std::vector<PackEntry> entries;
   std::string error;
   if (!read_pack_file(pack.path(), entries, error)) fail("the pack just built: " + error);
-  seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  build.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return entries;
 }
 
@@ -128,13 +135,14 @@ std::string shortest(double x) {
 }
 
 // `strides` null for brute force.
-std::string stats_json(const render::Image& image, double precompute_seconds, const render::ShellStrides* strides) {
+std::string stats_json(const render::Image& image, const PackBuild& build, const render::ShellStrides* strides) {
   char buf[512];
   std::snprintf(buf, sizeof buf,
-                "{\"seconds\": %.6g, \"precompute_seconds\": %.6g, \"paths\": %lld, \"collisions\": %lld, "
+                "{\"seconds\": %.6g, \"precompute_seconds\": %.6g, \"spheres_computed\": %d, \"paths\": %lld, "
+                "\"collisions\": %lld, "
                 "\"strides\": %lld, \"mean_radiance\": %.10g, \"spheres\": %d, \"smallest_sphere_tau\": %.6g, "
                 "\"largest_sphere_tau\": %.6g}\n",
-                image.seconds, precompute_seconds, (long long)image.paths, (long long)image.collisions,
+                image.seconds, build.seconds, build.spheres_computed, (long long)image.paths, (long long)image.collisions,
                 (long long)image.strides, image.mean_radiance(), strides ? strides->spheres() : 0,
                 strides ? strides->smallest_tau() : 0.0, strides ? strides->largest_tau() : 0.0);
   return buf;
@@ -164,12 +172,12 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
   if (!o.png.empty()) png_out.emplace(o.png, "--png", keep), keep.push_back(png_out->named());
   if (!o.json.empty()) json_out.emplace(o.json, "--json", keep);
 
-  double precompute_seconds = 0;
+  PackBuild build;
   std::unique_ptr<render::Method> method;
   const render::ShellStrides* strided = nullptr;
   if (stf) {
     auto strides = std::make_unique<render::ShellStrides>(
-        o.medium, o.pack.empty() ? build_pack(o, s.threads, precompute_seconds) : read_pack_option(o.pack));
+        o.medium, o.pack.empty() ? build_pack(o, s.threads, build) : read_pack_option(o.pack));
     strided = strides.get();
     if (!o.pack.empty() && strides->spheres() == 0)  // most likely the pack of another medium
       fail("--pack: " + o.pack + " has no sphere of albedo " + shortest(o.medium.albedo()) + " and g " +
@@ -186,7 +194,7 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
   stop_if_interrupted();
   write_image(image_out, image, o, s.spp, seed);
   if (png_out) write_file(*png_out, render::encode_png(render::tone_map(image.mean), image.width, image.height));
-  if (json_out) write_file(*json_out, stats_json(image, precompute_seconds, strided));
+  if (json_out) write_file(*json_out, stats_json(image, build, strided));
   if (!o.quiet)
     std::fprintf(stderr,
                  "stf render: %s, %lld paths in %.3g s (%.3g collisions, %.3g strides per path), mean radiance %.6g "

@@ -105,7 +105,8 @@ TEST_F(Render, ThinMediumGivesTheBruteForceImage) {
 }
 
 // Without --pack the medium's pack is built into the cache once; the next render of the medium
-// takes it from there: the same spheres, so the same image, and the cache's files untouched.
+// takes it from there: it walks no sphere, leaves the cache's files untouched and draws the
+// same image.
 TEST_F(Render, SecondRenderReusesTheCachedPack) {
   const std::string args = "render --sigma-s 4.9 --sigma-a 0.1 --g 0.5 --width 16 --height 16 --spp 8 --quiet "
                            "--method stf --tolerance 0.05 --cache " + out("cache");
@@ -124,6 +125,7 @@ TEST_F(Render, SecondRenderReusesTheCachedPack) {
     std::ifstream json(out(n + ".json"));
     std::string stats((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
     EXPECT_NE(stats.find("\"spheres\": 1"), std::string::npos) << stats;  // tau 4 in a tau-5 sphere
+    EXPECT_NE(stats.find("\"spheres_computed\": " + std::to_string(1 - run)), std::string::npos) << stats;
     if (run == 0) after_first = cache_files();
   }
   EXPECT_FALSE(after_first.empty());                // the first render filled the cache
