@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -59,5 +60,19 @@ std::vector<double> get_dataset(const H5::H5File& file, const char* path,
 std::vector<std::int32_t> get_int_dataset(const H5::H5File& file, const char* path,
                                           const std::vector<hsize_t>& expect);
 std::vector<hsize_t> dataset_shape(const H5::H5File& file, const char* path);
+
+// read(file) on `path` opened read-only, any failure rethrown in one line naming the file.
+template <typename Read>
+auto read_file(const std::string& path, Read read) {
+  try {
+    H5::Exception::dontPrint();
+    H5::H5File file(path, H5F_ACC_RDONLY);
+    return read(file);
+  } catch (const H5::Exception& e) {
+    throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());
+  } catch (const std::runtime_error& e) {  // a missing attribute or dataset, a bad value
+    throw std::runtime_error(path + ": " + e.what());
+  }
+}
 
 }  // namespace stf::h5

@@ -195,9 +195,7 @@ void read_grid(const H5::H5File& file, Table& t) {
 }  // namespace
 
 Table read_table(const std::string& path) {
-  try {
-    H5::Exception::dontPrint();
-    H5::H5File file(path, H5F_ACC_RDONLY);
+  return read_file(path, [](H5::H5File& file) {
     Table t;
     read_header(file, t);
     read_escapes(file, t);
@@ -206,11 +204,7 @@ Table read_table(const std::string& path) {
     if (std::string why = table_error(t); !why.empty()) throw std::runtime_error(why);
     if (t.halves == Halves::kTallied) check_weight_against_halves(file, t);
     return t;
-  } catch (const H5::Exception& e) {
-    throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());
-  } catch (const std::runtime_error& e) {
-    throw std::runtime_error(path + ": " + e.what());
-  }
+  });
 }
 
 }  // namespace stf

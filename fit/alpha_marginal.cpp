@@ -126,13 +126,6 @@ Eigen::VectorXd fit_log_density(const Design& d, const Eigen::VectorXd& counts, 
   return beta;
 }
 
-// The roughness penalties tried: 1 to 1e6 in half decades.
-std::vector<double> marginal_penalties() {
-  std::vector<double> p;
-  for (int k = 0; k <= 12; ++k) p.push_back(std::pow(10.0, 0.5 * k));
-  return p;
-}
-
 }  // namespace
 
 AlphaMarginal smooth_alpha_marginal(const Table& t) {
@@ -150,7 +143,8 @@ AlphaMarginal smooth_alpha_marginal(const Table& t) {
   Eigen::VectorXd beta[2];
   for (int h = 0; h < 2; ++h) beta[h] = Eigen::VectorXd::Constant(kBasis, std::log(half[h].sum() / (4 * std::numbers::pi)));
   double best = std::numeric_limits<double>::infinity();
-  for (double penalty : marginal_penalties()) {
+  for (int k = 0; k <= 12; ++k) {  // penalties 1 to 1e6 in half decades
+    const double penalty = std::pow(10.0, 0.5 * k);
     double nll = 0;
     for (int h = 0; h < 2; ++h) {
       beta[h] = fit_log_density(d, half[h], penalty, beta[h]);

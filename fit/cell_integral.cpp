@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 
 #include "exp_in_place.h"
 #include "stf/tilt.h"
@@ -19,15 +20,10 @@ double dlog_norm(double kappa) {
 
 // The vMF normalisation kappa / (2 pi (1 - e^{-2 kappa})) and d log(norm) / d kappa with one
 // exponential (none above kappa = 20, where e^{-2 kappa} < 1e-17).
-void widened_norm(double kappa, double& norm, double& dlog) {
-  if (kappa < 1e-3) {
-    norm = vmf_pdf(kappa, 1.0);
-    dlog = dlog_norm(kappa);
-    return;
-  }
-  double e = kappa > 20 ? 0.0 : std::exp(-2 * kappa);
-  norm = kappa / (2 * kPi * (1 - e));
-  dlog = 1 / kappa - 2 * e / (1 - e);
+std::pair<double, double> widened_norm(double kappa) {
+  if (kappa < 1e-3) return {vmf_pdf(kappa, 1.0), dlog_norm(kappa)};
+  const double e = kappa > 20 ? 0.0 : std::exp(-2 * kappa);
+  return {kappa / (2 * kPi * (1 - e)), 1 / kappa - 2 * e / (1 - e)};
 }
 
 // The centre of cell c: the normalised mean of its quadrature points.
@@ -264,7 +260,7 @@ void LobeIntegrator::integrate_lobe(const Vec3& mean, double kappa, PointFactor 
         if (a != widened_for) {
           const double stretch = 1 + kappa * a / 12;
           widened_for = a, ke = kappa / stretch, d_ke = kappa / (stretch * stretch);
-          widened_norm(ke, norm, dlog);
+          std::tie(norm, dlog) = widened_norm(ke);
         }
         // d v / d log kappa = v (dlog_norm(ke) + cos - 1) (d ke / d kappa) kappa.
         batch.exponent[k] = ke * (cosine - 1), batch.scale[k] = a * norm;
@@ -283,17 +279,14 @@ void LobeIntegrator::integrate_bin_lobe(const Vec3& mean, double kappa, const Lo
                                         CopyScratch& scratch) const {
   const int copies = nodes_needed(kappa);
   if (copies == 1) {
-    integrate_lobe(mean, kappa, outward_ ? PointFactor{outward_} : PointFactor{}, out);
+    integrate_lobe(mean, kappa, PointFactor{outward_}, out);
     return;
   }
   const bool derivatives = out.d_theta != nullptr;
-  std::vector<double>&m = scratch.m, &dt = scratch.dt, &dm = scratch.dm;
-  std::vector<char>& marked = scratch.marked;
-  std::vector<int>& touched = scratch.touched;
+  auto& [m, dt, dm, marked, touched] = scratch;
   for (const Node& node : nodes_[std::size_t(copies - 1)]) {
     double t = 0, tt = 0, tm[3] = {0, 0, 0};
-    PointFactor factor;
-    if (outward_) factor.turned = &node.outward;
+    const PointFactor factor{nullptr, outward_ ? &node.outward : nullptr};
     touched.clear();
     integrate_lobe(turn_about_y(mean, node.angle), kappa, factor,
                    {m.data(), derivatives ? dt.data() : nullptr, derivatives ? dm.data() : nullptr, &t, &tt, tm,

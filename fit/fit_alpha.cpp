@@ -1,10 +1,5 @@
 // The alpha stage (fit_stages.h): the smoothed alpha marginal, the tilts, and the turns taken
 // from the slopes of the bins' headings smoothed across alpha (fit_table.h).
-#include <Eigen/Dense>
-
-#include <algorithm>
-#include <cmath>
-
 #include "fit_stages.h"
 #include "stf/vec3.h"
 

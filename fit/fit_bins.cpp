@@ -29,7 +29,7 @@ struct Neighbourhood {
 class OutwardSource {
  public:
   OutwardSource(const Table& t, const QuadratureLevels& levels, const FitSettings& s, bool pooled)
-      : t_(t), levels_(levels), hemispherical_(s.hemispherical) {
+      : t_(t), levels_(levels) {
     double points = 0;  // per bin: a factor at every point of every level
     for (int level = 0; level <= QuadratureLevels::kMaxLevel; ++level) points += double(levels.at(level).point.size());
     const double cache_bytes = double(t.alpha_bins) * points * sizeof(double);
@@ -37,19 +37,17 @@ class OutwardSource {
     cache_.resize(std::size_t(t.alpha_bins));
     for_each_bin(t.alpha_bins, s, [&](int b) { cache_[std::size_t(b)] = compute(b); });
   }
-  // Bin b's factors: from the cache, or computed into `own`.
+  // Bin b's factors (hemispherical lobes only): from the cache, or computed into `own`.
   const OutwardFactors& of(int b, OutwardFactors& own) const {
     return cache_.empty() ? (own = compute(b)) : cache_[std::size_t(b)];
   }
 
  private:
   OutwardFactors compute(int b) const {
-    const std::vector<double>& edges = t_.alpha_edges;
-    return hemispherical_ ? outward_factors(levels_, edges[std::size_t(b)], edges[std::size_t(b) + 1]) : OutwardFactors{};
+    return outward_factors(levels_, t_.alpha_edges[std::size_t(b)], t_.alpha_edges[std::size_t(b) + 1]);
   }
   const Table& t_;
   const QuadratureLevels& levels_;
-  bool hemispherical_;
   std::vector<OutwardFactors> cache_;
 };
 
@@ -74,13 +72,12 @@ double add_pool(const PassContext& c, int b, double escapes, VmfFitOptions& opti
   for (int side = 0; side < 2 * width; ++side) {
     const int d = side / 2 + 1, j = side % 2 ? b + d : b - d;
     if (j < 0 || j >= bins || n.totals[std::size_t(j)] < c.min_escapes) continue;
-    const OutwardFactors& neighbour = c.outward.of(j, near[std::size_t(side)]);
     const double w = pool_weight(width, d);
     // Sloped pools turn by the smoothed headings: their turn slopes carry the heading's change
     // across the pool, and each neighbour's own noisy heading would only add noise to it.
     // Flat pools turn each neighbour onto the bin's heading by its own.
     const std::vector<double>& turn = how.sloped ? n.smoothed : n.headings;
-    options.pooled.push_back({&n.counts[std::size_t(j)], options.outward ? &neighbour : nullptr,
+    options.pooled.push_back({&n.counts[std::size_t(j)], options.outward ? &c.outward.of(j, near[std::size_t(side)]) : nullptr,
                               turn[std::size_t(j)] - turn[std::size_t(b)], w, j - b, c.e.turn_of(c.pass.half, j)});
     weighted += w * n.totals[std::size_t(j)];
   }

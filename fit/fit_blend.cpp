@@ -51,38 +51,38 @@ HeldOut scores_at_widths(const std::vector<HeldOut>& blended, const std::vector<
   return h;
 }
 
-BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, const FitSettings& s, const TurnedNeighbours& turned) {
+std::vector<int> choose_blend(const Escapes& e, const HeldOut& flat, const FitSettings& s, const TurnedNeighbours& turned,
+                              FitReport& r) {
   const Table& t = e.table;
-  const int max_width = s.max_blend;
   StfModel shape;
   shape.alpha_probability.assign(std::size_t(t.alpha_bins), 0.0);
   shape.alpha_tilt = fit_alpha_tilts(t, 0);
   std::vector<std::vector<double>> p(t.alpha_bins), q(t.alpha_bins);
   for (int b = 0; b < t.alpha_bins; ++b)
     for (double l : flat.log_p[b]) p[b].push_back(std::exp(l));
-  BlendChoice c;
-  c.nll = {flat.nll}, c.error = {0.0};
+  std::vector<double>& nll = r.blend_heldout_nll = {flat.nll};
+  std::vector<double>& error = r.blend_heldout_nll_error = {0.0};
   std::vector<HeldOut> blended{flat};
-  for (shape.alpha_blend = 1; shape.alpha_blend <= max_width; ++shape.alpha_blend) {
+  for (shape.alpha_blend = 1; shape.alpha_blend <= s.max_blend; ++shape.alpha_blend) {
     for (int b = 0; b < t.alpha_bins; ++b)
       q[b] = blended_cells(shape, b, [&](int j) -> const std::vector<double>& {
         return j == b || turned.cells.empty() ? p[std::size_t(j)] : turned.at(j, b);
       });
     blended.push_back(score(e, 1, q));
-    c.nll.push_back(blended.back().nll);
-    c.error.push_back(difference_error(e, 1, blended.back(), flat));
+    nll.push_back(blended.back().nll);
+    error.push_back(difference_error(e, 1, blended.back(), flat));
   }
-  for (int w = 1; w <= max_width; ++w)
-    if (c.nll[std::size_t(w)] < c.nll[std::size_t(c.width)] && c.nll[0] - c.nll[std::size_t(w)] > kConfig.blend_standard_errors * c.error[std::size_t(w)])
-      c.width = w;
-  const std::vector<int> one(std::size_t(t.alpha_bins), c.width), by_bin = widths_by_bin(blended);
+  int& width = r.blend_width = 0;
+  for (int w = 1; w <= s.max_blend; ++w)
+    if (nll[std::size_t(w)] < nll[std::size_t(width)] && nll[0] - nll[std::size_t(w)] > kConfig.blend_standard_errors * error[std::size_t(w)])
+      width = w;
+  const std::vector<int> one(std::size_t(t.alpha_bins), width), by_bin = widths_by_bin(blended);
   const HeldOut at_one = scores_at_widths(blended, one), at_by_bin = scores_at_widths(blended, by_bin);
-  c.by_bin_gain = at_one.nll - at_by_bin.nll;
-  c.by_bin_error = difference_error(e, 1, at_by_bin, at_one);
-  const bool keep_by_bin = s.blend_by_bin && c.by_bin_gain > kConfig.blend_standard_errors * c.by_bin_error;
+  r.blend_by_bin_gain = at_one.nll - at_by_bin.nll;
+  r.blend_by_bin_error = difference_error(e, 1, at_by_bin, at_one);
+  const bool keep_by_bin = s.blend_by_bin && r.blend_by_bin_gain > kConfig.blend_standard_errors * r.blend_by_bin_error;
   const std::vector<int>& widths = keep_by_bin ? by_bin : one;
-  if (std::any_of(widths.begin(), widths.end(), [](int h) { return h > 0; })) c.widths = widths;
-  return c;
+  return std::any_of(widths.begin(), widths.end(), [](int h) { return h > 0; }) ? widths : std::vector<int>{};
 }
 
 }  // namespace stf::fit::stages

@@ -21,11 +21,7 @@ std::vector<double> bin_counts(const Table& t, int half, int b) {
   return counts;
 }
 
-double sum(const std::vector<double>& v) {
-  double s = 0;
-  for (double x : v) s += x;
-  return s;
-}
+double sum(const std::vector<double>& v) { return std::accumulate(v.begin(), v.end(), 0.0); }
 
 double both_halves(const Table& t, int b) { return sum(bin_counts(t, 0, b)) + sum(bin_counts(t, 1, b)); }
 

@@ -78,33 +78,28 @@ SizeChoice choose_size(const Escapes& e, const FitSettings& s, const DirectionGr
   // plain projection.
   if (!s.automatic && (s.kind != ModelKind::kSh || e.table.halves == Halves::kEven)) return c;
   std::vector<int> sizes = s.automatic ? auto_candidates(s.kind) : std::vector<int>{s.size};
-  std::vector<HeldOut> scores;
-  std::vector<ShSmoothing> ts;
+  std::vector<SizeTrial> trials;
   double lowest = std::numeric_limits<double>::infinity();
   int misses = 0;
   for (int candidate : sizes) {
-    SizeTrial trial = heldout_for_size(e, s, {-1, candidate, nullptr, c.half_fits.empty() ? nullptr : &c.half_fits.back()},
-                                       grid, levels);
-    scores.push_back(std::move(trial.score));
-    c.half_fits.push_back(std::move(trial.fits));
-    ts.push_back(trial.smoothing);
+    trials.push_back(heldout_for_size(e, s, {-1, candidate, nullptr, trials.empty() ? nullptr : &trials.back().fits},
+                                      grid, levels));
     if (cancelled(s)) return c;
-    if (scores.back().nll < lowest) lowest = scores.back().nll, misses = 0;
+    if (trials.back().score.nll < lowest) lowest = trials.back().score.nll, misses = 0;
     else if (++misses == 2) break;
   }
-  sizes.resize(scores.size());
-  for (std::size_t i = 1; i < scores.size(); ++i)
-    if (scores[i].nll < scores[c.best].nll) c.best = i;
-  for (std::size_t i = 0; i < scores.size(); ++i) {
+  for (std::size_t i = 1; i < trials.size(); ++i)
+    if (trials[i].score.nll < trials[c.best].score.nll) c.best = i;
+  for (std::size_t i = 0; i < trials.size(); ++i) {
     r.candidates.push_back(sizes[i]);
-    r.heldout_nll.push_back(scores[i].nll);
-    r.heldout_nll_error.push_back(difference_error(e, 1, scores[i], scores[c.best]));
+    r.heldout_nll.push_back(trials[i].score.nll);
+    r.heldout_nll_error.push_back(difference_error(e, 1, trials[i].score, trials[c.best].score));
   }
-  c.sizes = sizes;
   c.size = sizes[c.best];
-  c.smoothing = ts[c.best];
-  c.fits = c.half_fits[c.best];
-  c.score = std::move(scores[c.best]);
+  c.smoothing = trials[c.best].smoothing;
+  c.fits = trials[c.best].fits;
+  c.score = std::move(trials[c.best].score);
+  for (SizeTrial& trial : trials) c.half_fits.push_back(std::move(trial.fits));
   return c;
 }
 

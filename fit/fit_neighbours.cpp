@@ -18,41 +18,28 @@ Neighbours choose_neighbours(const Escapes& e, const FitSettings& s, const Direc
     TurnedNeighbours turned;
     if (!e.turns.empty() && s.max_blend > 0) turned = turned_neighbours(c.fits, e.turns, levels, s.max_blend, s);
     if (cancelled(s)) return n;
-    BlendChoice blend = choose_blend(e, c.score, s, turned);
-    r.blend_heldout_nll = blend.nll;
-    r.blend_heldout_nll_error = blend.error;
-    r.blend_width = blend.width;
-    r.blend_by_bin_gain = blend.by_bin_gain;
-    r.blend_by_bin_error = blend.by_bin_error;
-    n.blend_widths = blend.widths;
+    n.blend_widths = choose_blend(e, c.score, s, turned, r);
   }
   return n;
 }
 
 std::vector<PoolTry> choose_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid,
                                     const QuadratureLevels& levels, SizeChoice& c, FitReport& r) {
-  const std::vector<int>& sizes = c.sizes;
-  const std::size_t best = c.best;
-  int& size = c.size;
-  BinFits& fits = c.fits;
-  HeldOut& score = c.score;
   const std::vector<int> all = auto_candidates(s.kind);
   std::vector<PoolTry> alone(std::size_t(e.table.alpha_bins)), nearest = alone;
   for (int b = 0; b < e.table.alpha_bins; ++b) nearest[std::size_t(b)].width = worth_pooling(e, b) ? 1 : 0;
-  if (nearest == alone || best + 1 >= all.size()) return alone;
-  const auto next = std::upper_bound(all.begin(), all.end(), size);
+  if (nearest == alone || c.best + 1 >= all.size()) return alone;
   std::vector<PoolTry> chosen = alone;
-  r.pool_heldout_nll.push_back(score.nll);
-  for (int candidate : next == all.end() ? std::vector<int>{size} : std::vector<int>{size, *next}) {
-    const auto tried = std::find(sizes.begin(), sizes.end(), candidate);
-    const Pooling pool{nearest, tried == sizes.end() ? nullptr : &c.half_fits[std::size_t(tried - sizes.begin())]};
-    SizeTrial pooled = heldout_for_size(e, s, {-1, candidate, nullptr, &fits, &pool}, grid, levels);
+  r.pool_heldout_nll.push_back(c.score.nll);
+  for (std::size_t i = c.best; i <= c.best + 1; ++i) {  // the chosen size (all[c.best]) and the next
+    const Pooling pool{nearest, i < c.half_fits.size() ? &c.half_fits[i] : nullptr};
+    SizeTrial pooled = heldout_for_size(e, s, {-1, all[i], nullptr, &c.fits, &pool}, grid, levels);
     if (cancelled(s)) return alone;
-    r.pool_sizes.push_back(candidate);
+    r.pool_sizes.push_back(all[i]);
     r.pool_heldout_nll.push_back(pooled.score.nll);
-    if (pooled.score.nll < score.nll) {
-      size = candidate, chosen = nearest;
-      fits = std::move(pooled.fits), score = std::move(pooled.score);
+    if (pooled.score.nll < c.score.nll) {
+      c.size = all[i], chosen = nearest;
+      c.fits = std::move(pooled.fits), c.score = std::move(pooled.score);
     }
   }
   r.neighbour_weight = chosen == alone ? 0 : pool_weight(1, 1);
@@ -73,26 +60,22 @@ std::vector<double> pooled_gain(const Pooling& pool, const HeldOut& before, cons
 void wide_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid, const QuadratureLevels& levels,
                   SizeChoice& c, std::vector<PoolTry>& pools) {
   const int bins = e.table.alpha_bins, size = c.size;
-  BinFits& fits = c.fits;
-  HeldOut& score = c.score;
   for (const PoolTry& tried : kConfig.pool_tries) {
-    Pooling pool{std::vector<PoolTry>(std::size_t(bins)), &fits, true};
+    Pooling pool{std::vector<PoolTry>(std::size_t(bins)), &c.fits, true};
     for (int b = 0; b < bins; ++b)
       if ((tried.sloped ? noisy(e, b, size) : capped_by_escapes(e, b, size)) && pools[std::size_t(b)] != tried)
         pool.bin[std::size_t(b)] = tried;
     if (!pool.any()) continue;
-    SizeTrial trial = heldout_for_size(e, s, {-1, size, nullptr, &fits, &pool}, grid, levels);
+    SizeTrial trial = heldout_for_size(e, s, {-1, size, nullptr, &c.fits, &pool}, grid, levels);
     if (cancelled(s)) return;
-    BinFits& pooled = trial.fits;
-    HeldOut& h = trial.score;
-    const std::vector<double> gain = pooled_gain(pool, score, h);
-    for (int b = 0; b < bins; ++b) {
-      if (pool.bin[std::size_t(b)].width == 0 || !(gain[std::size_t(b)] > 0)) continue;
-      pools[std::size_t(b)] = tried;
-      fits.lobes[std::size_t(b)] = std::move(pooled.lobes[std::size_t(b)]);
-      score.nll += h.bin_nll[std::size_t(b)] - score.bin_nll[std::size_t(b)];
-      score.bin_nll[std::size_t(b)] = h.bin_nll[std::size_t(b)];
-      score.log_p[std::size_t(b)] = std::move(h.log_p[std::size_t(b)]);
+    const std::vector<double> gain = pooled_gain(pool, c.score, trial.score);
+    for (std::size_t b = 0; b < std::size_t(bins); ++b) {
+      if (pool.bin[b].width == 0 || !(gain[b] > 0)) continue;
+      pools[b] = tried;
+      c.fits.lobes[b] = std::move(trial.fits.lobes[b]);
+      c.score.nll += trial.score.bin_nll[b] - c.score.bin_nll[b];
+      c.score.bin_nll[b] = trial.score.bin_nll[b];
+      c.score.log_p[b] = std::move(trial.score.log_p[b]);
     }
   }
 }

@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <stdexcept>
 
 #include "alpha_marginal.h"
@@ -136,12 +137,8 @@ void fill_borrowed(std::vector<BinStatus>& status, std::vector<P>& params, const
       if (b - d >= 0 && status[b - d] == BinStatus::kFitted) source = b - d;
       else if (b + d < bins && status[b + d] == BinStatus::kFitted) source = b + d;
     }
-    if (source < 0) {
-      status[b] = BinStatus::kEmpty;
-      params[b] = uniform;
-    } else {
-      params[b] = params[source];
-    }
+    if (source < 0) status[b] = BinStatus::kEmpty;
+    params[b] = source < 0 ? uniform : params[source];
   }
 }
 
@@ -251,8 +248,7 @@ SizeTrial heldout_for_size(const Escapes& e, const FitSettings& s, Pass pass, co
 // within a nat while larger sizes gain tens, and the search must not end there. vMF lobes of
 // each size start from the smaller size's. SH models also choose their smoothing here.
 struct SizeChoice {
-  std::vector<int> sizes;          // tried, in order
-  std::vector<BinFits> half_fits;  // their fits on half 0
+  std::vector<BinFits> half_fits;  // the candidates' fits on half 0, in the order tried
   std::size_t best = 0;            // the lowest held-out NLL among them
   int size = 0;                    // chosen (pools may change it)
   ShSmoothing smoothing;
@@ -267,7 +263,7 @@ SizeChoice choose_size(const Escapes& e, const FitSettings& s, const DirectionGr
 
 // Neighbour pooling adds no parameter but a bias (the neighbours' escapes are not quite the
 // bin's turned), so it can only pay where noise, not the family, limits the model: where the
-// held-out NLL stopped falling before the largest size (`best`, an index into the `sizes`
+// held-out NLL stopped falling before the largest size (`best`, an index into the candidates
 // tried), and in bins with few escapes (worth_pooling). Then the chosen size and the next are
 // fitted pooled on half 0 (the other bins as fitted alone); a pooled fit replaces the choice
 // (its size, half-0 fits and score) when its held-out NLL is lower (the rule of the sizes). Returns each bin's pool: the nearest neighbours in the bins worth pooling when pooling
@@ -306,13 +302,6 @@ struct TurnedNeighbours {
 TurnedNeighbours turned_neighbours(const BinFits& fits, const std::vector<BinTurn>& turns, const QuadratureLevels& levels,
                                    int width, const FitSettings& s);
 
-struct BlendChoice {
-  std::vector<double> nll, error;  // per width 0 .. max_width: held-out NLL, its SE against width 0
-  int width = 0;                   // one for every bin
-  std::vector<int> widths;         // per bin; empty: none
-  double by_bin_gain = 0, by_bin_error = 0;  // the widths by bin against one width: held-out gain, SE
-};
-
 // Widths by bin: each bin takes the width whose held-out gain over none, summed over the bins
 // within kConfig.blend_reach at hat weights 1 - |j - b| / (reach + 1), is largest (none where no
 // width gains): a bin's own gain is the score of a few hundred escapes, its neighbours' say what
@@ -332,8 +321,9 @@ HeldOut scores_at_widths(const std::vector<HeldOut>& blended, const std::vector<
 // their selection's; never without s.blend_by_bin). Near the axis of a forward medium the
 // density changes its shape from bin to bin and wants a narrow blend, far from it the bins are
 // noisy and want the widest; where the widest suits every bin the gain stays within noise and
-// one width is kept.
-BlendChoice choose_blend(const Escapes& e, const HeldOut& flat, const FitSettings& s, const TurnedNeighbours& turned);
+// one width is kept. Fills `r`'s blend fields; returns the widths per bin (empty: none).
+std::vector<int> choose_blend(const Escapes& e, const HeldOut& flat, const FitSettings& s, const TurnedNeighbours& turned,
+                              FitReport& r);
 
 // How each bin borrows from its neighbours: the pools its final fit reaches into, and the
 // width of the blend its sampler spreads it with. vmf/hvmf auto: pooling (choose_pooling) and,

@@ -2,30 +2,22 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 #include <utility>
 
 namespace stf::fit {
 
 namespace {
 
-// Signed deviance residual of count n against expectation mu, and d residual / d mu:
-// sum r^2 is the Poisson deviance, so least squares on r is maximum likelihood.
-void deviance_residual(double n, double mu, double& r, double& dr) {
+// Signed deviance residual r of count n against expectation mu, and d r / d mu: sum r^2 is
+// the Poisson deviance, so least squares on r is maximum likelihood.
+std::pair<double, double> deviance_residual(double n, double mu) {
   mu = std::max(mu, 1e-300);
-  if (n <= 0) {
-    r = -std::sqrt(2 * mu);
-    dr = -1 / std::sqrt(2 * mu);
-    return;
-  }
-  double d = 2 * (n * std::log(n / mu) - (n - mu));
-  if (d < 1e-12 * n) {  // mu ~ n: r ~ (n - mu) / sqrt(n)
-    r = (n - mu) / std::sqrt(n);
-    dr = -1 / std::sqrt(n);
-    return;
-  }
-  double root = std::sqrt(d);
-  r = n > mu ? root : -root;
-  dr = -std::abs(mu - n) / (mu * root);
+  if (n <= 0) return {-std::sqrt(2 * mu), -1 / std::sqrt(2 * mu)};
+  const double d = 2 * (n * std::log(n / mu) - (n - mu));
+  if (d < 1e-12 * n) return {(n - mu) / std::sqrt(n), -1 / std::sqrt(n)};  // mu ~ n: r ~ (n - mu) / sqrt(n)
+  const double root = std::sqrt(d);
+  return {n > mu ? root : -root, -std::abs(mu - n) / (mu * root)};
 }
 
 }  // namespace
@@ -62,7 +54,7 @@ PoissonDeviance::Lobes PoissonDeviance::integrate(double const* const* params, b
   const int K = lobes_, rows = cells_.rows();
   Lobes l;
   std::vector<double> logit(K), log_kappa(K);
-  l.w.resize(K), l.free_logit.resize(K), l.free_kappa.resize(K);
+  l.free_logit.resize(K), l.free_kappa.resize(K);
   for (int k = 0; k < K; ++k) {
     logit[k] = std::clamp(params[0][k], -kMaxLogit, kMaxLogit), l.free_logit[k] = logit[k] == params[0][k];
     log_kappa[k] = std::clamp(params[1][k], min_log_kappa_, max_log_kappa_), l.free_kappa[k] = log_kappa[k] == params[1][k];
@@ -106,9 +98,9 @@ bool PoissonDeviance::Evaluate(double const* const* params, double* residuals, d
   for (int row = 0; row < rows; ++row) {
     for (int k = 0; k < K; ++k) p[row] += l.share[k] * l.mass[std::size_t(k) * rows + row];
     p_rest -= p[row];
-    deviance_residual(count[row], escapes * p[row], residuals[row], dr[row]);
+    std::tie(residuals[row], dr[row]) = deviance_residual(count[row], escapes * p[row]);
   }
-  deviance_residual(0, escapes * std::max(p_rest, 0.0), residuals[rows], dr[rows]);
+  std::tie(residuals[rows], dr[rows]) = deviance_residual(0, escapes * std::max(p_rest, 0.0));
   if (jacobians) jacobian(l, p, dr, p_rest, jacobians);
   return true;
 }

@@ -15,15 +15,25 @@
 
 namespace stf::fit {
 
-namespace {
-// The one layout stf reads; files of other versions are refused in one line naming theirs and
-// the fix (fit the table again).
-constexpr int kFormatVersion = 6;
-}  // namespace
-
 using namespace h5;
 
 namespace {
+
+// The one layout stf reads; files of other versions are refused in one line naming theirs and
+// the fix (fit the table again).
+constexpr int kFormatVersion = 6;
+
+// The root's double attributes, in the order they are written: the medium's (none when the
+// table named no medium) and the fractions.
+using Field = std::pair<const char*, double StfModel::*>;
+constexpr Field kMedium[] = {{"sigma_s", &StfModel::sigma_s}, {"sigma_a", &StfModel::sigma_a},
+                             {"g", &StfModel::g},             {"radius", &StfModel::radius},
+                             {"tau", &StfModel::tau},         {"albedo", &StfModel::albedo}};
+constexpr Field kFractions[] = {{"escape_probability", &StfModel::escape_probability},
+                                {"absorbed_fraction", &StfModel::absorbed_fraction},
+                                {"truncated_fraction", &StfModel::truncated_fraction},
+                                {"uncollided_fraction", &StfModel::uncollided_fraction},
+                                {"once_fraction", &StfModel::once_fraction}};
 
 // The root attributes: the medium, the fractions and where the model came from.
 void put_header(H5::H5File& file, const StfModel& m, const FitReport& r, const Provenance& p) {
@@ -31,19 +41,9 @@ void put_header(H5::H5File& file, const StfModel& m, const FitReport& r, const P
   put_attr(file, "format_version", kFormatVersion);
   put_attr(file, "model", std::string(m.kind == ModelKind::kVmf ? "vmf" : "sh"));
   put_attr(file, "model_spec", p.model_spec);
-  if (m.has_medium()) {  // a model of a table that named no medium carries none
-    put_attr(file, "sigma_s", m.sigma_s);
-    put_attr(file, "sigma_a", m.sigma_a);
-    put_attr(file, "g", m.g);
-    put_attr(file, "radius", m.radius);
-    put_attr(file, "tau", m.tau);
-    put_attr(file, "albedo", m.albedo);
-  }
-  put_attr(file, "escape_probability", m.escape_probability);
-  put_attr(file, "absorbed_fraction", m.absorbed_fraction);
-  put_attr(file, "truncated_fraction", m.truncated_fraction);
-  put_attr(file, "uncollided_fraction", m.uncollided_fraction);
-  put_attr(file, "once_fraction", m.once_fraction);
+  if (m.has_medium())  // a model of a table that named no medium carries none
+    for (const auto& [name, field] : kMedium) put_attr(file, name, m.*field);
+  for (const auto& [name, field] : kFractions) put_attr(file, name, m.*field);
   put_attr(file, "hemispherical", int(m.hemispherical));
   put_attr(file, "alpha_blend", m.alpha_blend);
   put_attr(file, "fit_time_s", r.fit_time_s);
@@ -138,20 +138,16 @@ void put_diagnostics(H5::H5File& file, const StfModel& m, const FitReport& r) {
   }
 }
 
-void put_model(H5::H5File& file, const StfModel& m, const FitReport& r, const Provenance& p) {
-  put_header(file, m, r, p);
-  put_alpha(file, m);
-  put_directions(file, m, r);
-  put_diagnostics(file, m, r);
-}
-
 }  // namespace
 
 std::string model_file(const StfModel& m, const FitReport& r, const Provenance& p) {
   try {
     H5::Exception::dontPrint();
     MemoryFile memory;
-    put_model(memory.file(), m, r, p);
+    put_header(memory.file(), m, r, p);
+    put_alpha(memory.file(), m);
+    put_directions(memory.file(), m, r);
+    put_diagnostics(memory.file(), m, r);
     return memory.bytes();
   } catch (const H5::Exception& e) {
     throw std::runtime_error("cannot write a model: " + e.getDetailMsg());
@@ -177,21 +173,9 @@ StfModel get_header(H5::H5File& file) {
   std::string kind = get_string(file, "model");
   if (kind != "vmf" && kind != "sh") throw std::runtime_error("unknown model kind '" + kind + "'");
   m.kind = kind == "vmf" ? ModelKind::kVmf : ModelKind::kSh;
-  if (has_attr(file, "tau")) {
-    m.sigma_s = get_double(file, "sigma_s");
-    m.sigma_a = get_double(file, "sigma_a");
-    m.g = get_double(file, "g");
-    m.radius = get_double(file, "radius");
-    m.tau = get_double(file, "tau");
-    m.albedo = get_double(file, "albedo");
-  } else {
-    m.sigma_s = m.sigma_a = m.g = m.radius = m.tau = m.albedo = std::nan("");
-  }
-  m.escape_probability = get_double(file, "escape_probability");
-  m.absorbed_fraction = get_double(file, "absorbed_fraction");
-  m.truncated_fraction = get_double(file, "truncated_fraction");
-  m.uncollided_fraction = get_double(file, "uncollided_fraction");
-  m.once_fraction = get_double(file, "once_fraction");
+  const bool medium = has_attr(file, "tau");
+  for (const auto& [name, field] : kMedium) m.*field = medium ? get_double(file, name) : std::nan("");
+  for (const auto& [name, field] : kFractions) m.*field = get_double(file, name);
   m.hemispherical = get_int(file, "hemispherical") != 0;
   m.alpha_blend = get_int(file, "alpha_blend");
   return m;
@@ -238,20 +222,14 @@ void get_directions(H5::H5File& file, StfModel& m) {
 }  // namespace
 
 StfModel read_model(const std::string& path) {
-  try {
-    H5::Exception::dontPrint();
-    H5::H5File file(path, H5F_ACC_RDONLY);
+  return read_file(path, [](H5::H5File& file) {
     StfModel m = get_header(file);
     get_alpha(file, m);
     get_directions(file, m);
     if (std::string why = model_error(m); !why.empty()) throw std::runtime_error(why);
     m.rebuild_lobe_norms();
     return m;
-  } catch (const H5::Exception& e) {
-    throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());
-  } catch (const std::runtime_error& e) {  // a missing attribute or dataset, a bad value
-    throw std::runtime_error(path + ": " + e.what());
-  }
+  });
 }
 
 ModelSummary read_model_summary(const std::string& path) {
@@ -261,8 +239,7 @@ ModelSummary read_model_summary(const std::string& path) {
   s.size = m.kind == ModelKind::kVmf ? m.lobes : m.band_limit;
   s.alpha_bins = m.bins();
   s.bytes = m.packed_bytes();
-  try {
-    H5::H5File file(path, H5F_ACC_RDONLY);
+  return read_file(path, [&](H5::H5File& file) {
     if (has_attr(file, "source_grid")) s.grid = get_string(file, "source_grid");
     if (has_attr(file, "source_paths")) s.paths = get_int64(file, "source_paths");
     if (has_attr(file, "tolerance")) {
@@ -271,22 +248,12 @@ ModelSummary read_model_summary(const std::string& path) {
       s.tolerance_met = get_int(file, "tolerance_met") != 0;
       s.grid = get_string(file, "fit_grid");
     }
-  } catch (const H5::Exception& e) {
-    throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());
-  }
-  return s;
+    return s;
+  });
 }
 
 std::vector<double> read_chi2_dof(const std::string& path) {
-  try {
-    H5::Exception::dontPrint();
-    H5::H5File file(path, H5F_ACC_RDONLY);
-    return get_dataset(file, "/diagnostics/chi2_dof", {});
-  } catch (const H5::Exception& e) {
-    throw std::runtime_error("cannot read " + path + ": " + e.getDetailMsg());
-  } catch (const std::runtime_error& e) {
-    throw std::runtime_error(path + ": " + e.what());
-  }
+  return read_file(path, [](H5::H5File& file) { return get_dataset(file, "/diagnostics/chi2_dof", {}); });
 }
 
 StfModel read_model_or_pack(const std::string& path) {

@@ -25,7 +25,7 @@ struct Provenance {
 
 // What a model file says about its resolution, for plans and reports.
 struct ModelSummary {
-  std::string kind;       // "vmf" or "sh"
+  std::string kind;       // the family: "vmf", "hvmf" or "sh"
   int size = 0;           // lobes or band limit
   int alpha_bins = 0;
   std::string grid;       // it was fitted on

@@ -12,7 +12,6 @@
 namespace stf::fit {
 
 struct ShProjector::Impl {
-  const DirectionGrid* grid;
   std::vector<double> solid_angle;
   int nside = 0;                       // > 0: HEALPix path
   Eigen::MatrixXd cell_basis;          // [cells, count]: basis averaged over each cell
@@ -21,7 +20,6 @@ struct ShProjector::Impl {
 
 ShProjector::ShProjector(const DirectionGrid& grid, int band_limit)
     : band_limit_(band_limit), impl_(std::make_unique<Impl>()) {
-  impl_->grid = &grid;
   impl_->solid_angle = grid.solid_angles();
   if (auto* healpix = dynamic_cast<const HealpixGrid*>(&grid)) {
     impl_->nside = healpix->nside();

@@ -17,7 +17,6 @@ class ShProjector {
  public:
   ShProjector(const DirectionGrid& grid, int band_limit);
   ~ShProjector();
-  int band_limit() const { return band_limit_; }
   // Coefficients of the density per steradian f_c = counts_c / (total * solid_angle_c).
   std::vector<double> project(const std::vector<double>& counts) const;
 

@@ -64,11 +64,6 @@ std::vector<double> normalised(std::vector<double> y) {
   return y;
 }
 
-// The exit distribution given escape, over (alpha bin, cell).
-std::vector<double> exit_distribution(const Table& t) {
-  return normalised(t.weight());
-}
-
 std::vector<double> group_sums(const std::vector<double>& y, const Coarsening& k,
                                std::size_t groups) {
   std::vector<double> g(groups, 0.0);
@@ -106,7 +101,7 @@ double coarsening_tv(const Table& t, const Table& other, int f, int levels) {
   const Coarsening k = make_coarsening(t, f, levels);
   const std::size_t groups = std::size_t(t.alpha_bins / f) * k.cells;
   const std::vector<double> ya = normalised(t.weight_half[0]), yb = normalised(t.weight_half[1]);
-  const std::vector<double> yo = exit_distribution(other);
+  const std::vector<double> yo = normalised(other.weight());  // the exit distribution
   auto empty = [](const std::vector<double>& y) {
     return std::all_of(y.begin(), y.end(), [](double v) { return v == 0; });
   };
@@ -161,44 +156,36 @@ Certificate certify(const StfModel& model, const Table& fit, const Table& h,
     throw std::invalid_argument("the held-out table's resolution differs from the fit table's");
   std::unique_ptr<DirectionGrid> grid = make_grid(h.grid);
   const BinnedModel binned(model, h, *grid);
-  const int bins = model.bins(), f = binned.group();
   const QuadratureLevels levels(*grid);
   const std::vector<double> x = h.weight(), fit_counts = fit.weight();
   double n = 0, n_fit = 0;
   for (double v : x) n += v;
   for (double v : fit_counts) n_fit += v;
   const std::vector<double> t = normalised(fit_counts);
-  Certificate cert;
-  if (n < 2 || n_fit < 1) {  // nothing to certify with
-    cert.tv_bound = std::numeric_limits<double>::infinity();
-    return cert;
-  }
+  const Certificate no_bound{std::numeric_limits<double>::infinity()};
+  if (n < 2 || n_fit < 1) return no_bound;  // nothing to certify with
   // Below one fit-table escape a cell's weight says nothing; a floor there keeps single
   // held-out escapes in cells the model calls empty from dominating the variance.
   const double floor = 1 / n_fit;
   const std::vector<std::pair<double, std::vector<double>>> in_h = binned_in_parallel(model, binned, levels, settings);
-  if (in_h.empty()) {  // cancelled: no bound
-    cert.tv_bound = std::numeric_limits<double>::infinity();
-    return cert;
-  }
+  if (in_h.empty()) return no_bound;  // cancelled
+  Certificate cert;
   double chi2_var = 0, weight_sum = 0;
-  for (int j = 0; j < bins; ++j) {
-    for (int a = j * f; a < (j + 1) * f; ++a) {
-      const auto& [bin_probability, p] = in_h[std::size_t(a)];
-      for (std::int64_t c = 0; c < h.cells; ++c) {
-        const std::size_t i = std::size_t(a) * h.cells + c;
-        const double count = x[i], y = count / n, m = bin_probability * p[c],
-                     w = std::max({m, t[i], floor});
-        weight_sum += w;
-        // E[(y - m)^2] = (p - m)^2 + p (1 - p) / n; count / n^2 and count (count - 1) /
-        // (n^2 (n - 1)) are unbiased for p / n and p^2 / n.
-        const double d =
-            (y - m) * (y - m) - count / (n * n) + count * (count - 1) / (n * n * (n - 1));
-        cert.chi2 += d / w;
-        // Poisson: Var = [4 (p - m)^2 p / n + 2 p^2 / n^2] / w^2, with p taken as w (the
-        // fit table's and the model's, independent of the held-out noise) and (p - m)^2 as d.
-        chi2_var += 4 * std::max(0.0, d) / (n * w) + 2 / (n * n);
-      }
+  for (std::size_t a = 0; a < in_h.size(); ++a) {  // every (alpha bin, cell) of h
+    const auto& [bin_probability, p] = in_h[a];
+    for (std::int64_t c = 0; c < h.cells; ++c) {
+      const std::size_t i = a * h.cells + c;
+      const double count = x[i], y = count / n, m = bin_probability * p[c],
+                   w = std::max({m, t[i], floor});
+      weight_sum += w;
+      // E[(y - m)^2] = (p - m)^2 + p (1 - p) / n; count / n^2 and count (count - 1) /
+      // (n^2 (n - 1)) are unbiased for p / n and p^2 / n.
+      const double d =
+          (y - m) * (y - m) - count / (n * n) + count * (count - 1) / (n * n * (n - 1));
+      cert.chi2 += d / w;
+      // Poisson: Var = [4 (p - m)^2 p / n + 2 p^2 / n^2] / w^2, with p taken as w (the
+      // fit table's and the model's, independent of the held-out noise) and (p - m)^2 as d.
+      chi2_var += 4 * std::max(0.0, d) / (n * w) + 2 / (n * n);
     }
   }
   cert.chi2_sd = std::sqrt(chi2_var);

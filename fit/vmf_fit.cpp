@@ -54,8 +54,10 @@ void em_on_cells(const std::vector<double>& counts, const std::vector<Vec3>& cen
   }
 }
 
-}  // namespace
-
+// The deterministic starting point: spherical k-means on the cell centres
+// (QuadratureLevels::centres) weighted by counts (seeded at the fullest cell, then
+// farthest-first), weights from the cluster masses, kappa from each cluster's mean resultant
+// length (Banerjee et al. 2005).
 std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const std::vector<Vec3>& centre, int K) {
   const std::size_t cells = counts.size();
   // Counts at cell centres resolve no lobe narrower than a cell: a cluster of one cell has a
@@ -64,7 +66,6 @@ std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const std:
   // fit the rest around it. Start lobes are at most as narrow as one mean cell (2 pi / kappa
   // = 4 pi / cells); the likelihood stage narrows them where the data ask for it.
   const double resolved = std::min(kMaxStartKappa, 0.5 * double(cells));
-  // Seeds: the fullest cell, then farthest-first weighted by counts.
   std::vector<Vec3> mean;
   mean.push_back(centre[std::max_element(counts.begin(), counts.end()) - counts.begin()]);
   while (int(mean.size()) < K) {
@@ -79,20 +80,16 @@ std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const std:
     mean.push_back(centre[pick]);
   }
   std::vector<VmfLobe> lobes(K);
-  std::vector<int> owner(cells, 0);
   for (int iteration = 0; iteration < 20; ++iteration) {
+    std::vector<Vec3> sum(K, Vec3{0, 0, 0});
+    std::vector<double> mass(K, 0);
     for (std::size_t c = 0; c < cells; ++c) {
       int best = 0;
       for (int k = 1; k < K; ++k)
         if (dot(mean[k], centre[c]) > dot(mean[best], centre[c])) best = k;
-      owner[c] = best;
-    }
-    std::vector<Vec3> sum(K, Vec3{0, 0, 0});
-    std::vector<double> mass(K, 0);
-    for (std::size_t c = 0; c < cells; ++c) {
-      Vec3& s = sum[owner[c]];
+      Vec3& s = sum[best];
       s = {s.x + counts[c] * centre[c].x, s.y + counts[c] * centre[c].y, s.z + counts[c] * centre[c].z};
-      mass[owner[c]] += counts[c];
+      mass[best] += counts[c];
     }
     double total = 0;
     for (double m : mass) total += m;
@@ -112,8 +109,6 @@ std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const std:
   em_on_cells(counts, centre, lobes, 30, resolved);
   return lobes;
 }
-
-namespace {
 
 ceres::Solver::Options solver_options(const VmfFitOptions& options) {
   ceres::Solver::Options solver;
@@ -137,8 +132,10 @@ std::vector<VmfLobe> solved_lobes(const std::vector<double>& logits, const std::
   return lobes;
 }
 
-VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& levels,
-                   const std::vector<VmfLobe>& start, const VmfFitOptions& options) {
+}  // namespace
+
+VmfFitResult fit_vmf_from(const std::vector<double>& counts, const QuadratureLevels& levels,
+                          const std::vector<VmfLobe>& start, const VmfFitOptions& options) {
   const int K = int(start.size());
   std::vector<double> logits(K), log_kappa(K), means(3 * K);
   for (int k = 0; k < K; ++k) {
@@ -189,17 +186,12 @@ VmfFitResult solve(const std::vector<double>& counts, const QuadratureLevels& le
   return result;
 }
 
-}  // namespace
-
 std::vector<VmfLobe> grow_lobes(std::vector<VmfLobe> lobes, int K) {
   // Lobes of zero weight (a bin with fewer escapes than lobes) are dropped first.
   lobes.erase(std::remove_if(lobes.begin(), lobes.end(), [](const VmfLobe& l) { return l.weight <= 0; }), lobes.end());
   if (int(lobes.size()) > K) lobes.resize(std::size_t(K));
+  if (lobes.empty() && K > 0) lobes.push_back({1, 1e-3, {0, 0, 1}});
   while (int(lobes.size()) < K) {
-    if (lobes.empty()) {
-      lobes.push_back({1, 1e-3, {0, 0, 1}});
-      continue;
-    }
     // The heaviest lobe becomes two, half a standard deviation to each side of its mean, so
     // the likelihood's gradient can pull them apart.
     VmfLobe& l = *std::max_element(lobes.begin(), lobes.end(), [](const VmfLobe& a, const VmfLobe& b) { return a.weight < b.weight; });
@@ -218,24 +210,19 @@ std::vector<VmfLobe> grow_lobes(std::vector<VmfLobe> lobes, int K) {
   return lobes;
 }
 
-VmfFitResult fit_vmf_from(const std::vector<double>& counts, const QuadratureLevels& levels,
-                          const std::vector<VmfLobe>& start, const VmfFitOptions& options) {
-  return solve(counts, levels, start, options);
-}
-
 VmfFitResult fit_vmf(const std::vector<double>& counts, const QuadratureLevels& levels, int K,
                      const VmfFitOptions& options) {
-  if (!options.outward) return solve(counts, levels, initial_lobes(counts, levels.centres(), K), options);
+  if (!options.outward) return fit_vmf_from(counts, levels, initial_lobes(counts, levels.centres(), K), options);
   // Hemispherical lobes have more poor local optima than plain ones: K lobes grow from a fit of
   // half as many (the heaviest split), down to two from k-means.
-  if (K > 2) return solve(counts, levels, grow_lobes(fit_vmf(counts, levels, (K + 1) / 2, options).lobes, K), options);
+  if (K > 2) return fit_vmf_from(counts, levels, grow_lobes(fit_vmf(counts, levels, (K + 1) / 2, options).lobes, K), options);
   // They are multiplied by the outward factor, so they start from the counts with that factor
   // divided out (floored, so that grazing cells do not dominate): the shape the lobes
   // themselves must take.
   std::vector<double> lobe_counts(counts);
   const std::vector<double>& factor = (*options.outward)[0];
   for (std::size_t c = 0; c < lobe_counts.size(); ++c) lobe_counts[c] = factor[c] > 0 ? counts[c] / std::max(factor[c], 0.1) : 0.0;
-  return solve(counts, levels, initial_lobes(lobe_counts, levels.centres(), K), options);
+  return fit_vmf_from(counts, levels, initial_lobes(lobe_counts, levels.centres(), K), options);
 }
 
 }  // namespace stf::fit

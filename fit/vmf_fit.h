@@ -60,10 +60,4 @@ std::vector<VmfLobe> grow_lobes(std::vector<VmfLobe> lobes, int K);
 VmfFitResult fit_vmf_from(const std::vector<double>& counts, const QuadratureLevels& levels,
                           const std::vector<VmfLobe>& start, const VmfFitOptions& options = {});
 
-// The deterministic starting point: spherical k-means on the cell centres
-// (QuadratureLevels::centres) weighted by counts (seeded at the fullest cell, then
-// farthest-first), weights from the cluster masses, kappa from each cluster's mean resultant
-// length (Banerjee et al. 2005).
-std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const std::vector<Vec3>& centres, int lobes);
-
 }  // namespace stf::fit
