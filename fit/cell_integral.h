@@ -98,7 +98,8 @@ OutwardFactors outward_factors(const QuadratureLevels& levels, double a0, double
 // models with. The factor falls to 0 across the bin's tangent planes, and its value at a point
 // gives a cell the plane cuts none of its outward part when the point lies below, where the
 // sampler draws directions and a table has escapes. (The fit keeps the point values: averaged
-// there too, the tau 1 g 0.9 models of 1e5 paths came out farther, docs/fit.md.)
+// there too, its models came out farther from the references; docs/studies/
+// 2026-12-fit-measurements.md, "What is left at tau 1 g 0.9".)
 OutwardFactors outward_cell_means(const QuadratureLevels& levels, double a0, double a1);
 
 // vMF lobes integrated over the cells of one histogram, batched: each lobe at the quadrature
@@ -195,8 +196,8 @@ class LobeIntegrator {
     return std::clamp(int(std::ceil(kTurnNodesPerWidth * span_ * std::sqrt(kappa))), 1, kMaxTurnNodes);
   }
   static constexpr int kMaxTurnNodes = 16;
-  // Copies one lobe width apart: half as far apart took the fit of tau 1 g 0.9 (1e5 paths) from
-  // 5.5-6.7 s to 7.5-10.3 s, and its models moved within 1e-4 either way (docs/fit.md).
+  // Copies one lobe width apart: closer copies slow the fit and move no model (docs/studies/
+  // 2026-12-fit-measurements.md, "Densities that turn with the exit point").
   static constexpr double kTurnNodesPerWidth = 1;
 
   const QuadratureLevels& levels_;

@@ -55,8 +55,9 @@ struct Escapes {
   std::vector<std::int64_t> image;
   std::vector<double> total;  // per bin, both halves
   // How each bin's density turns across it in fits of the whole table (empty: the bins stand
-  // still). The half-table fits that choose sizes, pools and blends stand still: turned as well,
-  // the models of tau 1 g 0.9 at 1e5 paths came out farther (five seeds: 0.0123 against 0.0119).
+  // still). The half-table fits that choose sizes, pools and blends stand still: turning them
+  // too chose models farther from the references (docs/studies/2026-12-fit-measurements.md,
+  // "Densities that turn with the exit point").
   std::vector<BinTurn> turns;
   std::vector<double> counts(int half, int b) const {
     std::vector<double> c = bin_counts(table, half, b);
@@ -108,20 +109,18 @@ struct RestProbabilities {
 // covariances with each other and with A follow from the table's totals, the collisions of the
 // absorbed paths among them; the regression on all three is the linear estimator of least
 // variance, for many paths at most that of A's plain share and of (1 - albedo) c alone. Its
-// coefficients come from the same totals as the means they multiply, which biases it by O(1/n)
-// (measured about -0.9 / n per path: 9e-6 at 1e5 paths, a fifth of its standard deviation).
+// coefficients come from the same totals as the means they multiply, which biases it by O(1/n),
+// far below its standard deviation at the table sizes stf fits.
 // Returns -1 where the table does not tally the absorbed paths' collisions or D is constant
 // (albedo 0 or 1).
 double absorption_by_regression(const Table& t, const SingularParts& exact);
 
 // The paths that neither escaped uncollided nor after one collision split among the other
 // outcomes independently of how many they were, so each outcome's share of them times the exact
-// 1 - p0 - p1 estimates its probability with the singular parts' noise taken out (at tau 1 g 0.9,
-// albedo 0.95, the standard deviation of the escapes after two or more collisions halves).
+// 1 - p0 - p1 estimates its probability with the singular parts' noise taken out.
 // Absorption then comes from the regression where the table allows it, and the escapes after two
 // or more collisions take what is left: with rare absorption (albedo near 1) the collision count
-// knows it far better than the absorbed paths do (tau 16, albedo 0.999: a tenth of the standard
-// deviation). Where no path is left after the exact parts (tiny tau or tables), nothing tallied
+// knows it far better than the absorbed paths do. Where no path is left after the exact parts (tiny tau or tables), nothing tallied
 // can carry the rest: it goes to absorption, which is what a renderer makes of a lost path.
 RestProbabilities rest_probabilities(const Table& t, const SingularParts& exact);
 
@@ -155,8 +154,8 @@ struct BinFits {
 };
 
 // Whether bin b is sparse enough for its neighbours' escapes to pay (FitSettings::
-// pool_neighbours): pooling trades noise for bias, and measured on 1e7-path tables it moved no
-// model while its fits took four times as long.
+// pool_neighbours): pooling trades noise for bias, and where a bin's own escapes are many it
+// moves no model while its fits take several times as long.
 bool worth_pooling(const Escapes& e, int b);
 
 // Whether a half-table holds too few of bin b's escapes for `size` lobes (kConfig.escapes_per_lobe each):
