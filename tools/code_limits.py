@@ -43,11 +43,14 @@ def blank_out(text):
             j = n if j < 0 else j + 2
             out.append(re.sub(r"[^\n]", " ", text[i:j]))
             i = j
+        elif c == "'" and i > 0 and text[i - 1].isalnum():  # a digit separator (1'000'000)
+            out.append(c)
+            i += 1
         elif c in "\"'":
             j = i + 1
             while j < n and text[j] != c:
                 j += 2 if text[j] == "\\" else 1
-            out.append(c + " " * (min(j, n - 1) - i - 1) + c)
+            out.append(c + re.sub(r"[^\n]", " ", text[i + 1:min(j, n - 1)]) + c)
             i = j + 1
         else:
             out.append(c)
