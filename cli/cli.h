@@ -3,8 +3,10 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <initializer_list>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -181,6 +183,23 @@ class ProgressBar {
   std::string label_;
   bool enabled_;
   bool drawn_ = false;
+};
+
+// One status line on stderr, shown only when stderr is a terminal, for work done in named steps
+// of unknown number (a fit): the step, how much of it is done, the seconds so far. update() may
+// be called from any thread; a call that finds another drawing is dropped.
+class StepStatus {
+ public:
+  StepStatus(std::string label, bool quiet);
+  void update(const std::string& step, std::int64_t done, std::int64_t total);
+  void finish();  // clears the line
+
+ private:
+  std::string label_;
+  bool enabled_;
+  std::mutex mutex_;
+  const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  double shown_ = -1;  // seconds when last drawn
 };
 
 // --sigma-s, --sigma-a, --g (required when `required`) and --radius, into `medium`.

@@ -139,6 +139,8 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
   if (pack_out && !table.has_medium())
     fail(o.table + " names no medium, and a pack needs one (tau, albedo, g): import the histogram with --sigma-s, --sigma-a and --g");
   settings.cancel = &interrupted;
+  StepStatus status("stf fit", o.quiet);
+  settings.progress = [&](const std::string& step, int done, int bins) { status.update(step, done, bins); };
   fit::FitReport report;
   StfModel model;
   fit::Provenance provenance;
@@ -150,6 +152,7 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
     tolerant = fit_to_tolerance(o, table, settings, provenance);
     model = tolerant->model, report = tolerant->report;
   }
+  status.finish();
   stop_if_interrupted();
   // All staged first: a full disk leaves every old output as it was.
   out.stage(fit::model_file(model, report, provenance));
@@ -258,7 +261,7 @@ void add_fit_command(CLI::App& app) {
                   "Target TV distance: fewest alpha bins, coarsest grid and smallest size that are certified within it");
   cmd->add_option("--heldout", o->heldout, "With --tolerance: an independent table (other seed) that certifies the fit")
       ->check(CLI::ExistingFile);
-  cmd->add_flag("--quiet", o->quiet, "No summary line");
+  cmd->add_flag("--quiet", o->quiet, "No status line and no summary line");
   cmd->callback([o, cmd] { run_fit(*o, *cmd); });
 }
 

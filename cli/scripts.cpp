@@ -129,4 +129,26 @@ void ProgressBar::finish() {
   drawn_ = false;
 }
 
+StepStatus::StepStatus(std::string label, bool quiet)
+    : label_(std::move(label)), enabled_(!quiet && ::isatty(STDERR_FILENO)) {}
+
+void StepStatus::update(const std::string& step, std::int64_t done, std::int64_t total) {
+  if (!enabled_) return;
+  std::unique_lock<std::mutex> lock(mutex_, std::try_to_lock);
+  if (!lock) return;
+  const double now = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  if (now < shown_ + 0.1 && done < total) return;
+  shown_ = now;
+  // \033[K clears what a longer step's line left.
+  std::fprintf(stderr, "\r\033[K%s: %s: %lld of %lld bins, %.0f s", label_.c_str(), step.c_str(), (long long)done,
+               (long long)total, now);
+  std::fflush(stderr);
+}
+
+void StepStatus::finish() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (enabled_ && shown_ >= 0) std::fprintf(stderr, "\r\033[K");
+  shown_ = -1;
+}
+
 }  // namespace stf::cli

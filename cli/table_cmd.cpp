@@ -91,8 +91,11 @@ void run_smooth(const SmoothOptions& o) {
   const Table table = read_table(o.table);
   if (std::string why = fit::settings_error(table, settings); !why.empty()) fail(o.table + ": " + why);
   settings.cancel = &interrupted;
+  StepStatus status("stf smooth", o.quiet);
+  settings.progress = [&](const std::string& step, int done, int bins) { status.update(step, done, bins); };
   fit::FitReport report;
   const StfModel model = fit::fit_table(table, settings, &report);
+  status.finish();
   stop_if_interrupted();
   const std::vector<double> weights = fit::expected_weights(model, table);
   const std::string spec = chosen_spec(model, report);
@@ -132,7 +135,7 @@ void add_smooth_command(CLI::App& app) {
   cmd->add_option("table", o->table, "Table (HDF5): stf's, or any file with the four datasets")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", o->output, "Smoothed table (HDF5)")->required();
   add_fit_options(*cmd, o->model, o->threads);
-  cmd->add_flag("--quiet", o->quiet, "No summary line");
+  cmd->add_flag("--quiet", o->quiet, "No status line and no summary line");
   cmd->callback([o] { run_smooth(*o); });
 }
 

@@ -35,7 +35,7 @@ class OutwardSource {
     const double cache_bytes = double(t.alpha_bins) * points * sizeof(double);
     if (!s.hemispherical || s.kind != ModelKind::kVmf || !pooled || cache_bytes > kConfig.outward_cache_bytes) return;
     cache_.resize(std::size_t(t.alpha_bins));
-    for_each_bin(t.alpha_bins, s, [&](int b) { cache_[std::size_t(b)] = compute(b); });
+    for_each_bin(t.alpha_bins, s, "outward factors", [&](int b) { cache_[std::size_t(b)] = compute(b); });
   }
   // Bin b's factors (hemispherical lobes only): from the cache, or computed into `own`.
   const OutwardFactors& of(int b, OutwardFactors& own) const {
@@ -112,6 +112,13 @@ std::vector<VmfLobe> fit_lobes(const std::vector<double>& counts, const Pass& pa
   return std::move(fit.lobes);
 }
 
+// What a pass is called in the fit's progress.
+std::string pass_name(const Pass& pass) {
+  const std::string size = "size " + std::to_string(pass.size);
+  if (pass.half < 0) return "final fit, " + size;
+  return (pass.pool ? "pooled fits, " : "fits, ") + size + ", half " + std::to_string(pass.half);
+}
+
 }  // namespace
 
 BinFits fit_bins(const Escapes& e, const Pass& pass, const QuadratureLevels& levels, const FitSettings& s) {
@@ -128,7 +135,7 @@ BinFits fit_bins(const Escapes& e, const Pass& pass, const QuadratureLevels& lev
   const Neighbourhood n(e, pass);
   const OutwardSource outward(t, levels, s, !n.counts.empty());
   const PassContext context{e, pass, n, outward, s.min_escapes};
-  for_each_bin(t.alpha_bins, s, [&](int b) {
+  for_each_bin(t.alpha_bins, s, pass_name(pass), [&](int b) {
     std::vector<double> own;
     const std::vector<double>& counts = n.counts.empty() ? (own = e.counts(pass.half, b)) : n.counts[std::size_t(b)];
     const double escapes = sum(counts);

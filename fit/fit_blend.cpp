@@ -10,7 +10,7 @@ TurnedNeighbours turned_neighbours(const BinFits& fits, const std::vector<BinTur
   auto middle = [&](int bin) { return 0.5 * (edges[std::size_t(bin)] + edges[std::size_t(bin) + 1]); };
   TurnedNeighbours n{width, std::vector<std::vector<std::vector<double>>>(
                                 std::size_t(t.alpha_bins), std::vector<std::vector<double>>(2 * std::size_t(width) + 1))};
-  for_each_bin(t.alpha_bins, s, [&](int b) {
+  for_each_bin(t.alpha_bins, s, "blends", [&](int b) {
     for (int j = std::max(0, b - width); j <= std::min(t.alpha_bins - 1, b + width); ++j) {
       if (j == b) continue;
       const double angle = turns[std::size_t(j)].rate * (middle(b) - middle(j));

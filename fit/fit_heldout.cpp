@@ -61,7 +61,7 @@ SizeTrial heldout_for_size(const Escapes& e, const FitSettings& s, Pass pass, co
   if (cancelled(s)) return trial;  // bins were skipped: nothing to score
   for (const ShSmoothing& smoothing : s.kind == ModelKind::kSh ? sh_smoothings() : std::vector<ShSmoothing>{{}}) {
     std::vector<std::vector<double>> p(t.alpha_bins);
-    for_each_bin(t.alpha_bins, s,
+    for_each_bin(t.alpha_bins, s, "held-out scores, size " + std::to_string(trial.fits.size),
                  [&](int b) { p[b] = bin_probabilities(trial.fits, b, smoothing, levels, basis, Tails::kCut); });
     if (cancelled(s)) return {};  // some bins were skipped
     HeldOut h = score(e, 1, p);

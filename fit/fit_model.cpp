@@ -80,7 +80,7 @@ void diagnose(const BinFits& fits, const FitSettings& s, const StfModel& m, cons
   const Table& t = *fits.table;
   r.bins.resize(std::size_t(t.alpha_bins));
   const int params_per_bin = s.kind == ModelKind::kVmf ? 5 * size - 1 : sh_count(size) - 1;
-  for_each_bin(t.alpha_bins, s, [&](int b) {
+  for_each_bin(t.alpha_bins, s, "diagnostics", [&](int b) {
     std::vector<double> counts = bin_counts(t, -1, b);
     BinDiagnostics& d = r.bins[std::size_t(b)];
     d.escapes = sum(counts);

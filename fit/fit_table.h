@@ -3,6 +3,7 @@
 #pragma once
 
 #include <atomic>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -45,6 +46,10 @@ struct FitSettings {
   // When set (e.g. by Ctrl-C), no further bin is started and fit_table returns early with a
   // model that must be thrown away.
   const std::atomic<bool>* cancel = nullptr;
+  // Told as bins are done: the step the fit is on ("fits, size 4, half 0", "final fit", ...)
+  // and how many of its bins are done. Called from the worker threads, so it must be
+  // thread-safe; null: nothing is told.
+  std::function<void(const std::string& step, int done, int bins)> progress;
 };
 
 // Parses "auto" (what the project recommends: hvmf:auto), "vmf:K", "vmf:auto", "hvmf:K",

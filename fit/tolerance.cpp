@@ -133,7 +133,7 @@ std::vector<std::pair<double, std::vector<double>>> binned_in_parallel(const Stf
   const int bins = model.bins(), f = binned.group();
   std::vector<std::pair<double, std::vector<double>>> out(std::size_t(bins) * f);
   if (!model.alpha_turn.empty()) {
-    for_each_bin(bins, settings, [&](int j) {
+    for_each_bin(bins, settings, "certificate", [&](int j) {
       SmoothCellCache cache(model, levels);
       for (int a = j * f; a < (j + 1) * f; ++a) out[std::size_t(a)] = binned.bin(a, std::ref(cache));
     });
@@ -141,7 +141,7 @@ std::vector<std::pair<double, std::vector<double>>> binned_in_parallel(const Stf
     return out;
   }
   std::vector<std::vector<double>> cell_probability(bins);
-  for_each_bin(bins, settings, [&](int j) { cell_probability[j] = smooth_cell_probabilities(model, j, levels); });
+  for_each_bin(bins, settings, "certificate", [&](int j) { cell_probability[j] = smooth_cell_probabilities(model, j, levels); });
   if (cancelled(settings)) return {};
   const auto cells_of = [&](int j, double) -> const std::vector<double>& { return cell_probability[std::size_t(j)]; };
   for (std::size_t a = 0; a < out.size(); ++a) out[a] = binned.bin(int(a), cells_of);

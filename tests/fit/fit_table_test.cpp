@@ -10,6 +10,8 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
+#include <mutex>
 #include <numeric>
 #include <random>
 
@@ -253,6 +255,38 @@ TEST(FitTable, AutoIsHemisphericalLobesAtTheirHeldOutSize) {
   EXPECT_EQ(a.chosen_size, h.chosen_size);
   ASSERT_EQ(by_auto.vmf.size(), by_hvmf.vmf.size());
   for (std::size_t i = 0; i < by_auto.vmf.size(); ++i) EXPECT_EQ(by_auto.vmf[i].kappa, by_hvmf.vmf[i].kappa) << i;
+}
+
+// The fit tells its progress step by step, every step to its last bin, from the worker threads,
+// and telling it changes nothing.
+TEST(FitTable, ProgressTellsEveryStepToItsLastBin) {
+  const Table t = make_table({4, 0.5, 0.3, 1}, 40000, "healpix:4", 9);
+  FitSettings s = parse_model_spec("auto");
+  s.threads = 2;
+  std::mutex mutex;
+  std::vector<std::string> order;         // the steps as they began
+  std::map<std::string, int> last, bins;  // each step's highest bin count told, and its bins
+  s.progress = [&](const std::string& step, int done, int n) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (!last.count(step)) order.push_back(step);
+    last[step] = std::max(last[step], done), bins[step] = n;
+  };
+  FitReport r;
+  const StfModel told = fit_table(t, s, &r);
+  for (const auto& [step, done] : last) EXPECT_EQ(done, bins[step]) << step;
+  const std::string final_fit = "final fit, size " + std::to_string(r.chosen_size);
+  ASSERT_GE(order.size(), 4u);
+  EXPECT_EQ(order.front(), "fits, size 1, half 0");
+  EXPECT_EQ(order[1], "held-out scores, size 1");
+  EXPECT_EQ(order[order.size() - 2], final_fit);
+  EXPECT_EQ(order.back(), "diagnostics");
+  s.progress = nullptr;
+  const StfModel untold = fit_table(t, s);
+  ASSERT_EQ(told.vmf.size(), untold.vmf.size());
+  for (std::size_t i = 0; i < told.vmf.size(); ++i) {
+    EXPECT_EQ(told.vmf[i].kappa, untold.vmf[i].kappa) << i;
+    EXPECT_EQ(told.vmf[i].weight, untold.vmf[i].weight) << i;
+  }
 }
 
 // The once-scattered escapes are an exact part too: their probability is the one-collision
