@@ -191,6 +191,7 @@ class ProgressBar {
 class StepStatus {
  public:
   StepStatus(std::string label, bool quiet);
+  ~StepStatus() { finish(); }  // an error's line starts on a line of its own
   void update(const std::string& step, std::int64_t done, std::int64_t total);
   void finish();  // clears the line
 

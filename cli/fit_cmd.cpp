@@ -78,7 +78,7 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
 
 // --tolerance: resolution and size chosen and certified on the --heldout table.
 fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, const fit::FitSettings& settings,
-                                   fit::Provenance& provenance) {
+                                   fit::Provenance& provenance, StepStatus& status) {
   if (o.heldout.empty()) fail("--tolerance needs --heldout: an independent table of the same medium (another --seed)");
   if (o.alpha_degree >= 0) fail("--alpha-degree and --tolerance cannot be combined");
   const double tolerance = o.tolerance;
@@ -90,6 +90,7 @@ fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, cons
       !same(heldout.medium.g, table.medium.g) || heldout.max_scatter != table.max_scatter)
     fail("--heldout must be a table of the same medium (tau, albedo, g, --max-scatter)");
   fit::ToleranceFit r = fit::fit_to_tolerance(table, heldout, tolerance, settings);
+  status.finish();
   stop_if_interrupted();  // a cancelled search has no result to state
   provenance.tolerance = tolerance, provenance.tv_bound = r.certificate.tv_bound, provenance.tolerance_met = r.met;
   provenance.heldout_table = o.heldout, provenance.heldout_paths = heldout.paths;
@@ -149,7 +150,7 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
   if (!cmd.count("--tolerance")) {
     model = fit::fit_table(table, settings, &report);
   } else {
-    tolerant = fit_to_tolerance(o, table, settings, provenance);
+    tolerant = fit_to_tolerance(o, table, settings, provenance, status);
     model = tolerant->model, report = tolerant->report;
   }
   status.finish();

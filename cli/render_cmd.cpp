@@ -59,8 +59,6 @@ scene::Scene render_scene(const RenderOptions& o) {
   return sc;
 }
 
-// Builds (or finds in the cache) the pack for the medium; returns its entries and the
-// seconds spent.
 // What building the render's pack took: its seconds, and how many spheres were walked and fitted
 // (the others came from the cache).
 struct PackBuild {
@@ -68,6 +66,8 @@ struct PackBuild {
   int spheres_computed = 0;
 };
 
+// Builds (or finds in the cache) the pack for the medium; returns its entries, and in `build`
+// what building took.
 std::vector<PackEntry> build_pack(const RenderOptions& o, int threads, PackBuild& build) {
   const auto start = std::chrono::steady_clock::now();
   const scene::Scene sc = render_scene(o);

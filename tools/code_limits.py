@@ -21,6 +21,7 @@ import sys
 
 SOURCE = (".h", ".cpp")
 TYPE_KEYWORDS = re.compile(r"\b(class|struct|union|enum)\b")
+ACCESS = re.compile(r"^\s*(public|private|protected)\s*:(?!:)")
 FUNCTION_TAIL = re.compile(r"\)\s*(const\b|override\b|final\b|noexcept\b|mutable\b|&|\s)*$")
 
 
@@ -90,47 +91,57 @@ def parameter_count(head):
 
 def is_function_head(head):
     head = split_initialisers(head).split("->")[0].strip() if "(" in head else head
-    return bool(head) and "=" not in head.split("(")[0] and FUNCTION_TAIL.search(head) is not None
+    declarator = re.sub(r"\boperator\s*[^\s(]*", "operator", head.split("(")[0])  # operator== is no assignment
+    return bool(head) and "=" not in declarator and FUNCTION_TAIL.search(head) is not None
+
+
+def brace_kind(head, inside_fn):
+    """What a '{' opens, from the text before it: a namespace, a member's braces in a
+    constructor's initialiser list, a function body, a type, or anything else."""
+    if re.search(r"\b(namespace|extern)\b", head):
+        return "ns"
+    if inside_fn:
+        return "other"
+    if split_initialisers(head) != head and not re.search(r"[)}]\s*$", head):  # the body follows a ')' or '}'
+        return "init"
+    if is_function_head(head.strip()):
+        return "fn"
+    return "type" if TYPE_KEYWORDS.search(head) else "other"
 
 
 def functions(path):
-    """(name line, first line, last line, parameters) of every function defined in the file."""
+    """(name, first line, last line, parameters) of every function defined in the file."""
     text = blank_out(open(path, encoding="utf-8").read())
-    found, scopes, last_stop = [], [], 0  # scopes: 'ns', 'type', 'fn', 'other'
+    found, scopes, last_stop = [], [], 0  # scopes: (kind,) or ("fn", first line, parameters, head)
     for k, c in enumerate(text):
         if c == ";":
             last_stop = k + 1
         elif c == "{":
             head = text[last_stop:k]
-            inside_fn = any(s[0] == "fn" for s in scopes)
-            if re.search(r"\bnamespace\b", head) or re.search(r'\bextern\b', head):
-                kind = "ns"
-            elif not inside_fn and is_function_head(head.strip()):
-                kind = "fn"
-                first = text.count("\n", 0, last_stop + len(head) - len(head.lstrip())) + 1
-                scopes.append(("fn", first, parameter_count(head.strip()), head.strip()))
-                last_stop = k + 1
-                continue
-            elif TYPE_KEYWORDS.search(head) and not inside_fn:
-                kind = "type"
+            kind = brace_kind(head, any(s[0] == "fn" for s in scopes))
+            if kind == "fn":
+                signature = ACCESS.sub(lambda m: " " * len(m.group(0)), head)  # from after public: etc.
+                first = text.count("\n", 0, last_stop + len(signature) - len(signature.lstrip())) + 1
+                scopes.append(("fn", first, parameter_count(head.strip()), signature.strip()))
             else:
-                kind = "other"
-            scopes.append((kind,))
-            last_stop = k + 1
-        elif c == "}":
-            if scopes:
-                s = scopes.pop()
-                if s[0] == "fn":
-                    name = re.sub(r"\s+", " ", split_initialisers(s[3]).split("(")[0]).split(" ")[-1]
-                    found.append((name, s[1], text.count("\n", 0, k) + 1, s[2]))
-            last_stop = k + 1
+                scopes.append((kind,))
+            if kind != "init":  # a member's braces are part of the constructor's head
+                last_stop = k + 1
+        elif c == "}" and scopes:
+            s = scopes.pop()
+            if s[0] == "fn":
+                name = re.sub(r"\s+", " ", split_initialisers(s[3]).split("(")[0]).split(" ")[-1]
+                found.append((name, s[1], text.count("\n", 0, k) + 1, s[2]))
+            if s[0] != "init":
+                last_stop = k + 1
     return found
 
 
 def breaches(path, a):
     """The lines reporting where one file breaks the limits."""
     found = []
-    lines = open(path, encoding="utf-8").read().count("\n")
+    text = open(path, encoding="utf-8").read()
+    lines = text.count("\n") + (not text.endswith("\n") and text != "")
     if lines > a.max_file:
         found.append(f"{path}: {lines} lines (limit {a.max_file})")
     for name, first, last, params in functions(path):
@@ -152,6 +163,10 @@ def main():
     ap.add_argument("--allow", action="append", default=[], help="a function exempt from --max-params")
     ap.add_argument("--list", action="store_true")
     a = ap.parse_args()
+    for d in a.dirs:
+        if not os.path.isdir(d) or not any(f.endswith(SOURCE) for _, _, files in os.walk(d) for f in files):
+            print(f"code_limits: {d}: no folder of C++ sources", file=sys.stderr)
+            return 2
     paths = sorted(os.path.join(root, f) for d in a.dirs for root, _, files in os.walk(d) for f in files
                    if f.endswith(SOURCE))
     found = [line for path in paths for line in breaches(path, a)]

@@ -15,6 +15,31 @@ struct Holder {
   int a_, b_;
 };
 
+struct Braced {
+  Braced(int a, int b)
+      : a_{a},
+        b_({b}) {
+    a_ += b_;
+  }
+  int a_, b_;
+};
+
+class Labelled {
+ public:
+  // A comment between the label and the signature.
+  int three(int a) const {
+    return a;
+  }
+};
+
+struct Same {
+  bool operator==(const Same& o) const {
+    if (o.v == v) { return true; }
+    return false;
+  }
+  int v;
+};
+
 const char* braces() {
   const char* open = "{{{";  // braces in strings
   const char close = '}';    // and in char literals
