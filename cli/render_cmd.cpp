@@ -18,6 +18,7 @@
 #include "precompute.h"
 #include "render.h"
 #include "render_scene.h"
+#include "clock.h"
 
 namespace stf::cli {
 
@@ -74,13 +75,12 @@ std::vector<PackEntry> build_pack(const RenderOptions& o, int threads, PackBuild
   const std::string cache = cache_folder(o);
   const scene::Plan plan = scene::make_plan(sc, cache);
   try {
-    build.spheres_computed = scene::compute_entries(plan, threads,
-                           [&](int i, int n, const scene::PlanEntry& e) {
-                             if (!o.quiet)
-                               std::fprintf(stderr, "stf render: precomputing [%d/%d] tau %g albedo %g g %g\n", i + 1,
-                                            n, e.tau, e.albedo, e.g);
-                           },
-                           &interrupted);
+    const auto told = [&](int i, int n, const scene::PlanEntry& e) {
+      if (!o.quiet)
+        std::fprintf(stderr, "stf render: precomputing [%d/%d] tau %g albedo %g g %g\n", i + 1, n, e.tau, e.albedo,
+                     e.g);
+    };
+    build.spheres_computed = scene::compute_entries(plan, threads, told, &interrupted);
   } catch (const std::runtime_error&) {
     stop_if_interrupted();  // Ctrl-C: exit 130 (finished spheres stay in the cache)
     throw;
@@ -95,7 +95,7 @@ std::vector<PackEntry> build_pack(const RenderOptions& o, int threads, PackBuild
   std::vector<PackEntry> entries;
   std::string error;
   if (!read_pack_file(pack.path(), entries, error)) fail("the pack just built: " + error);
-  build.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  build.seconds = seconds_since(start);
   return entries;
 }
 
@@ -139,9 +139,8 @@ std::string stats_json(const render::Image& image, const PackBuild& build, const
   char buf[512];
   std::snprintf(buf, sizeof buf,
                 "{\"seconds\": %.6g, \"precompute_seconds\": %.6g, \"spheres_computed\": %d, \"paths\": %lld, "
-                "\"collisions\": %lld, "
-                "\"strides\": %lld, \"mean_radiance\": %.10g, \"spheres\": %d, \"smallest_sphere_tau\": %.6g, "
-                "\"largest_sphere_tau\": %.6g}\n",
+                "\"collisions\": %lld, \"strides\": %lld, \"mean_radiance\": %.10g, \"spheres\": %d, "
+                "\"smallest_sphere_tau\": %.6g, \"largest_sphere_tau\": %.6g}\n",
                 image.seconds, build.seconds, build.spheres_computed, (long long)image.paths, (long long)image.collisions,
                 (long long)image.strides, image.mean_radiance(), strides ? strides->spheres() : 0,
                 strides ? strides->smallest_tau() : 0.0, strides ? strides->largest_tau() : 0.0);

@@ -11,6 +11,7 @@
 #include <cstring>
 
 #include "cli.h"
+#include "clock.h"
 
 extern char** environ;
 
@@ -136,7 +137,7 @@ void StepStatus::update(const std::string& step, std::int64_t done, std::int64_t
   if (!enabled_) return;
   std::unique_lock<std::mutex> lock(mutex_, std::try_to_lock);
   if (!lock) return;
-  const double now = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  const double now = seconds_since(start_);
   if (now < shown_ + 0.1 && done < total) return;
   shown_ = now;
   // \033[K clears what a longer step's line left.

@@ -156,7 +156,10 @@ double poisson_deviance(const std::vector<double>& counts, const std::vector<dou
 
 LobeIntegrator::LobeIntegrator(const QuadratureLevels& levels, const std::vector<double>& counts,
                                const OutwardFactors* outward, const BinTurn* turn, double accurate_for, Tails tails)
-    : levels_(levels), outward_(outward), row_of_cell_(counts.size(), -1), cut_efolds_(tails == Tails::kKeep ? std::numeric_limits<double>::infinity() : 40) {
+    : levels_(levels),
+      outward_(outward),
+      row_of_cell_(counts.size(), -1),
+      cut_efolds_(tails == Tails::kKeep ? std::numeric_limits<double>::infinity() : 40) {
   if (turn && turn->rate != 0) turn_nodes(*turn);
   for (std::size_t c = 0; c < counts.size(); ++c) {
     total_ += counts[c];

@@ -1,4 +1,6 @@
 // A table's escapes as the fit sees them, and the probabilities of its parts (fit_stages.h).
+#include <numeric>
+
 #include "fit_stages.h"
 
 namespace stf::fit::stages {

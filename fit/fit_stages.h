@@ -14,7 +14,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 #include <stdexcept>
 
 #include "alpha_marginal.h"
@@ -120,8 +119,9 @@ double absorption_by_regression(const Table& t, const SingularParts& exact);
 // 1 - p0 - p1 estimates its probability with the singular parts' noise taken out.
 // Absorption then comes from the regression where the table allows it, and the escapes after two
 // or more collisions take what is left: with rare absorption (albedo near 1) the collision count
-// knows it far better than the absorbed paths do. Where no path is left after the exact parts (tiny tau or tables), nothing tallied
-// can carry the rest: it goes to absorption, which is what a renderer makes of a lost path.
+// knows it far better than the absorbed paths do. Where no path is left after the exact parts
+// (tiny tau or tables), nothing tallied can carry the rest: it goes to absorption, which is what
+// a renderer makes of a lost path.
 RestProbabilities rest_probabilities(const Table& t, const SingularParts& exact);
 
 // Bins whose status is kBorrowed take the parameters of the nearest fitted bin (the lower
@@ -248,7 +248,7 @@ SizeTrial heldout_for_size(const Escapes& e, const FitSettings& s, Pass pass, co
 // each size start from the smaller size's. SH models also choose their smoothing here.
 struct SizeChoice {
   std::vector<BinFits> half_fits;  // the candidates' fits on half 0, in the order tried
-  std::size_t best = 0;            // the lowest held-out NLL among them
+  std::size_t best = 0;            // the lowest held-out NLL among them (auto: auto_candidates' index)
   int size = 0;                    // chosen (pools may change it)
   ShSmoothing smoothing;
   BinFits fits;   // the chosen fits on half 0: where the final fit's lobes start
@@ -265,8 +265,9 @@ SizeChoice choose_size(const Escapes& e, const FitSettings& s, const DirectionGr
 // held-out NLL stopped falling before the largest size (`best`, an index into the candidates
 // tried), and in bins with few escapes (worth_pooling). Then the chosen size and the next are
 // fitted pooled on half 0 (the other bins as fitted alone); a pooled fit replaces the choice
-// (its size, half-0 fits and score) when its held-out NLL is lower (the rule of the sizes). Returns each bin's pool: the nearest neighbours in the bins worth pooling when pooling
-// won, else none.
+// (its size, half-0 fits and score) when its held-out NLL is lower (the rule of the sizes).
+// Returns each bin's pool: the nearest neighbours in the bins worth pooling when pooling won,
+// else none.
 std::vector<PoolTry> choose_pooling(const Escapes& e, const FitSettings& s, const DirectionGrid& grid,
                                     const QuadratureLevels& levels, SizeChoice& choice, FitReport& r);
 

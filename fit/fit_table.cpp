@@ -6,6 +6,7 @@
 
 #include "expected_singular.h"
 #include "fit_stages.h"
+#include "clock.h"
 
 namespace stf::fit {
 
@@ -51,7 +52,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   r.smoothing = choice.smoothing.t;
   r.alpha_penalty = alpha.marginal.bin_escapes.empty() ? -1 : alpha.marginal.penalty;
   r.lanczos_window = choice.smoothing.lanczos;
-  r.fit_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.fit_time_s = seconds_since(start);
   return m;
 }
 

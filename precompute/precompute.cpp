@@ -13,6 +13,7 @@
 #include "grid.h"
 #include "minimal_table.h"
 #include "walk.h"
+#include "clock.h"
 
 namespace stf {
 
@@ -139,10 +140,6 @@ class Driver {
   std::mutex mutex_;
   std::chrono::steady_clock::time_point last_save_ = std::chrono::steady_clock::now();
 };
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 // Runs the driver's chunks on `threads` workers, reporting progress every 100 ms (waking at
 // once when they are done); false if a chunk failed or the run was cancelled.

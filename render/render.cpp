@@ -6,6 +6,8 @@
 #include <mutex>
 #include <thread>
 
+#include "clock.h"
+
 namespace stf::render {
 
 namespace {
@@ -47,7 +49,7 @@ double Image::mean_radiance() const {
 Image render(const Medium& medium, const Method& method, const ImageSettings& s, const RenderProgress& progress,
              const std::atomic<bool>* cancel) {
   const auto start = std::chrono::steady_clock::now();
-  const auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
+  const auto seconds = [&] { return seconds_since(start); };
   Image image;
   image.width = s.width, image.height = s.height;
   const std::int64_t pixels = std::int64_t(s.width) * s.height;

@@ -9,6 +9,7 @@
 #include "rng.h"
 #include "stf/pack.h"
 #include "stf/sampler.h"
+#include "clock.h"
 
 namespace stf::scene {
 
@@ -78,7 +79,7 @@ StressResult run_stress_case(const StressCase& c, long paths, long max_scatter, 
     }
   }
   if (r.status.empty()) r.status = "ok";
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.seconds = seconds_since(start);
   return r;
 }
 
