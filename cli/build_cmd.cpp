@@ -48,6 +48,7 @@ void run_build(const BuildOptions& o) {
   if (o.plan_only && !o.output.empty()) fail("-o and --plan-only exclude each other: --plan-only writes no pack");
   if (!o.plan_only && o.output.empty()) fail("-o must name the output pack (or use --plan-only)");
   const std::string cache = o.cache.empty() ? o.scene + ".cache" : o.cache;
+  if (!o.plan_only) require_writable_folder(cache, "--cache");
   if (o.json && o.output == "-") fail("--json and -o - would both write to stdout; give -o a file");
   if (!o.output.empty() && inside_folder(o.output, cache))
     fail("-o '" + o.output + "' is inside the cache '" + cache + "', which holds the tables and models the build reads; choose another folder");

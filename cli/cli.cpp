@@ -19,6 +19,7 @@
 #include <toml.hpp>
 
 #include "files.h"
+#include "h5io.h"
 #include "table.h"
 
 namespace stf::cli {
@@ -111,10 +112,17 @@ void unregister_temp(const std::string& path) {
 void on_signal(int signal) {
   int none = 0;
   interrupt_signal.compare_exchange_strong(none, signal);  // the first signal's, before the flag
-  if (!interrupted.exchange(true)) return;
+  // The first signal is polled for, unless the command is still reading its inputs: then a
+  // library stuck in a malformed file could keep it from ever looking.
+  const bool second = interrupted.exchange(true);
+  if (!second && !h5::reading_input()) return;
   // A second signal: the user insists. Leave nothing half-written behind.
   for (auto& slot : open_temps)
     if (const char* p = slot.load()) ::unlink(p);
+  if (!second) {
+    constexpr char kLine[] = "stf: error: interrupted; nothing written\n";
+    [[maybe_unused]] const ssize_t n = ::write(STDERR_FILENO, kLine, sizeof kLine - 1);
+  }
   ::_exit(interrupted_status());
 }
 
@@ -193,6 +201,27 @@ void copy_into(const std::string& from, int fd, const std::string& path) {
 void install_interrupt_handler() {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
+  // Past a file-size limit (ulimit -f) a write fails with "File too large" and is reported as
+  // any failed write, instead of the signal killing the process mid-file. (Python restores the
+  // default for its children, so report.py's stf runs need this too.)
+  std::signal(SIGXFSZ, SIG_IGN);
+}
+
+void require_writable_folder(const std::string& folder, const std::string& option) {
+  std::string at = folder.empty() ? "." : folder;
+  while (at.size() > 1 && at.back() == '/') at.pop_back();
+  for (;;) {
+    struct stat st;
+    if (::stat(at.c_str(), &st) == 0) {
+      if (!S_ISDIR(st.st_mode))
+        fail(option + " '" + folder + "': " + (at == folder ? "not a folder" : "'" + at + "' is not a folder"));
+      if (::access(at.c_str(), W_OK | X_OK) != 0) fail(option + " '" + folder + "': cannot write in '" + at + "'");
+      return;
+    }
+    if (errno != ENOENT) fail(option + " '" + folder + "': " + std::strerror(errno));
+    const std::size_t slash = at.find_last_of('/');
+    at = slash == std::string::npos ? "." : slash == 0 ? "/" : at.substr(0, slash);
+  }
 }
 
 void require_files(const std::vector<NamedFile>& inputs) {

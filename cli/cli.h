@@ -151,6 +151,11 @@ void commit_all(std::initializer_list<AtomicOutput*> outputs);
 // where CLI11's own check would run before it reports an unknown option.)
 void require_files(const std::vector<NamedFile>& inputs);
 
+// Fails naming `option` unless `folder` is a folder this process may write in, or does not
+// exist yet and could be made (its nearest existing parent is such a folder): checked before
+// any work, so a cache that is a file does not fail a long run at its end.
+void require_writable_folder(const std::string& folder, const std::string& option);
+
 // True when the file `path` (which may not exist yet) lies in `folder` itself (links followed).
 bool inside_folder(const std::string& path, const std::string& folder);
 

@@ -158,7 +158,10 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
   // All staged first: a full disk leaves every old output as it was.
   out.stage(fit::model_file(model, report, provenance));
   if (report_out) report_out->stage(report_json(report, model, o.model));
-  if (pack_out) pack_out->stage(bytes_of(write_pack({PackEntry{"", model}})));
+  if (pack_out) {
+    if (std::string why = pack_entry_error({"", model}); !why.empty()) fail("--pack: the model cannot go into a pack: " + why);
+    pack_out->stage(bytes_of(write_pack({PackEntry{"", model}})));
+  }
   commit_all({&out, report_out ? &*report_out : nullptr, pack_out ? &*pack_out : nullptr});
   if (!o.quiet)
     std::fprintf(stderr, "stf fit: %s size %d in %.3g s, %lld bytes (table %lld bytes) -> %s\n", o.model.c_str(),

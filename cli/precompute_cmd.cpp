@@ -47,7 +47,7 @@ bool exists(const std::string& path) {
 
 PrecomputeSettings settings_of(const PrecomputeOptions& o) {
   PrecomputeSettings s = o.settings;
-  s.alpha_bins = int(parse_count(o.alpha_bins, "--alpha-bins", 1, 100000));
+  s.alpha_bins = int(parse_count(o.alpha_bins, "--alpha-bins", 1, kMaxAlphaBins));
   s.paths = parse_count(o.paths, "--paths", 1, std::int64_t(1) << 50);
   s.seed = parse_count(o.seed, "--seed", 0, INT64_MAX);
   s.threads = int(parse_count(o.threads, "--threads", 0, 4096));

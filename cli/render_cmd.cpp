@@ -73,6 +73,7 @@ std::vector<PackEntry> build_pack(const RenderOptions& o, int threads, PackBuild
   const auto start = std::chrono::steady_clock::now();
   const scene::Scene sc = render_scene(o);
   const std::string cache = cache_folder(o);
+  require_writable_folder(cache, "--cache");
   const scene::Plan plan = scene::make_plan(sc, cache);
   try {
     const auto told = [&](int i, int n, const scene::PlanEntry& e) {

@@ -154,6 +154,8 @@ void run_report(const ReportOptions& o) {
   if (o.stress) return run_stress(o);
   if (o.max_media < 1) fail("--max-media must be at least 1, got " + std::to_string(o.max_media));
   if (o.output.empty()) fail("-o must name the report folder");
+  if (o.output == "-" || written_in_place(o.output))
+    fail("-o '" + o.output + "': a report is a folder of several files, not a stream or a device");
   std::vector<std::string> media;
   if (!o.pack.empty()) media = pack_media(o.pack, o.max_media);
   for (const std::string& m : o.media) media.push_back(medium_json(m));

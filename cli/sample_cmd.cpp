@@ -42,6 +42,8 @@ void run_pack(const PackOptions& o) {
     if (!entries.back().model.has_medium())
       fail("'" + o.models[i] + "' carries no medium (its table named none), and a pack needs one (tau, albedo, g): "
            "import the histogram with --sigma-s, --sigma-a and --g and fit it again");
+    if (std::string why = pack_entry_error(entries.back()); !why.empty())
+      fail("'" + o.models[i] + "' cannot go into a pack: " + why);
     for (std::size_t j = 0; j < i; ++j) {
       const StfModel &a = entries[j].model, &b = entries[i].model;
       if (entries[j].name == entries[i].name && a.tau == b.tau && a.albedo == b.albedo && a.g == b.g)
@@ -79,18 +81,21 @@ void write_samples(AtomicOutput& out, const std::vector<double>& point, const st
 void read_points(const std::string& path, std::vector<double>& p, std::vector<double>& d) {
   try {
     H5::Exception::dontPrint();
-    H5::H5File in(path, H5F_ACC_RDONLY);
-    for (const char* name : {"/samples", "/samples/exit_point", "/samples/exit_direction"})
-      if (!in.nameExists(name))
+    h5::ReadingInput reading;
+    H5::H5File in = h5::open_file(path);
+    for (const char* name : {"/samples/exit_point", "/samples/exit_direction"})
+      if (!h5::has_object(in, name))
         fail("--eval: '" + path + "' has no " + name + " (it needs the layout of `stf sample -o`)");
-    p = h5::get_dataset(in, "/samples/exit_point", {});
-    d = h5::get_dataset(in, "/samples/exit_direction", {});
+    const std::vector<hsize_t> shape = h5::dataset_shape(in, "/samples/exit_point");
+    if (shape.size() != 2 || shape[1] != 3) fail("--eval: '" + path + "': /samples/exit_point must be [N, 3]");
+    p = h5::get_dataset(in, "/samples/exit_point", shape);
+    d = h5::get_dataset(in, "/samples/exit_direction", shape);
   } catch (const H5::Exception& e) {
     fail("--eval: cannot read '" + path + "' as HDF5: " + e.getDetailMsg());
   } catch (const Error&) {
     throw;
   } catch (const std::exception& e) {
-    fail("--eval: " + std::string(e.what()));
+    fail("--eval: '" + path + "': " + std::string(e.what()));
   }
   if (p.size() != d.size() || p.size() % 3 != 0) fail("--eval: exit_point and exit_direction must both be [N, 3]");
 }

@@ -47,7 +47,7 @@ std::vector<double> read_histogram(const std::string& path, const Table& layout,
 void run_import(const ImportOptions& o, const CLI::App& cmd) {
   const bool medium = medium_given(cmd);
   PrecomputeSettings s;
-  s.alpha_bins = int(parse_count(o.alpha_bins, "--alpha-bins", 1, 100000));
+  s.alpha_bins = int(parse_count(o.alpha_bins, "--alpha-bins", 1, kMaxAlphaBins));
   s.grid = o.grid;
   // validate() checks the grid and the table's size as precompute would; any medium serves.
   if (auto error = validate(medium ? o.medium : Medium{1, 0, 0, 1}, s)) fail(*error);
@@ -90,6 +90,9 @@ void run_smooth(const SmoothOptions& o) {
   AtomicOutput out(o.output, "-o", {{o.table, "the table"}});
   const Table table = read_table(o.table);
   if (std::string why = fit::settings_error(table, settings); !why.empty()) fail(o.table + ": " + why);
+  // The output copies the input's attributes: one that cannot be copied fails now, not after the fit.
+  const std::string copy_error = h5::read_file(o.table, [](H5::H5File& f) { return h5::attributes_error(f); });
+  if (!copy_error.empty()) fail(o.table + ": " + copy_error);
   settings.cancel = &interrupted;
   StepStatus status("stf smooth", o.quiet);
   settings.progress = [&](const std::string& step, int done, int bins) { status.update(step, done, bins); };
@@ -100,7 +103,7 @@ void run_smooth(const SmoothOptions& o) {
   const std::vector<double> weights = fit::expected_weights(model, table);
   const std::string spec = chosen_spec(model, report);
   out.write(minimal_table_file(table, weights, [&](H5::H5File& f) {
-    const H5::H5File input(o.table, H5F_ACC_RDONLY);
+    const H5::H5File input = h5::open_file(o.table);
     h5::copy_attributes(input, f);
     for (const char* name : {"smoothed_by", "smoothed_from"})
       if (f.attrExists(name)) f.removeAttr(name);

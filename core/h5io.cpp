@@ -13,13 +13,6 @@ void put_scalar(H5::H5Object& obj, const char* name, const H5::PredType& type, T
   obj.createAttribute(name, type, H5::DataSpace()).write(type, &value);
 }
 
-template <typename T>
-T get_scalar(const H5::H5Object& obj, const char* name, const H5::PredType& type) {
-  if (!obj.attrExists(name)) throw std::runtime_error(std::string("missing attribute ") + name);
-  T value{};
-  obj.openAttribute(name).read(type, &value);
-  return value;
-}
 
 // Chunks of about 1 MiB, filled from the last (fastest) dimension: one chunk per row made a
 // million-row file hold a million chunks, whose index alone took gigabytes to write and read.
@@ -71,18 +64,6 @@ H5::DataSpace row_space(const H5::DataSet& set, const std::vector<hsize_t>& dims
   return space;
 }
 
-template <typename T>
-std::vector<T> get_array(const H5::H5File& file, const char* path,
-                         const std::vector<hsize_t>& expect, const H5::PredType& type) {
-  std::vector<hsize_t> dims = dataset_shape(file, path);
-  if (!expect.empty() && dims != expect)
-    throw std::runtime_error(std::string("unexpected shape of ") + path);
-  hsize_t total = 1;
-  for (hsize_t d : dims) total *= d;
-  std::vector<T> data(total);
-  if (total > 0) file.openDataSet(path).read(data.data(), type);
-  return data;
-}
 
 // Each memory file needs a name of its own while it is open.
 std::string memory_file_name() {
@@ -96,10 +77,16 @@ H5::FileAccPropList in_memory() {
   return props;
 }
 
+// Room at the file's start for stf's checksum (verify_checksum).
+H5::FileCreatPropList with_user_block() {
+  H5::FileCreatPropList props;
+  props.setUserblock(kUserBlockBytes);
+  return props;
+}
+
 }  // namespace
 
-MemoryFile::MemoryFile()
-    : file_(memory_file_name(), H5F_ACC_TRUNC, H5::FileCreatPropList::DEFAULT, in_memory()) {}
+MemoryFile::MemoryFile() : file_(memory_file_name(), H5F_ACC_TRUNC, with_user_block(), in_memory()) {}
 
 std::string MemoryFile::bytes() {
   file_.flush(H5F_SCOPE_LOCAL);
@@ -109,6 +96,9 @@ std::string MemoryFile::bytes() {
   if (H5Fget_file_image(file_.getId(), image.data(), image.size()) != size)
     throw std::runtime_error("cannot take the image of an HDF5 file in memory");
   file_.close();
+  // The image starts at the superblock; the user block it was made with comes before it.
+  image.insert(0, kUserBlockBytes, '\0');
+  stamp_checksum(image);
   return image;
 }
 
@@ -128,23 +118,6 @@ void put_attr(H5::H5Object& obj, const char* name, const std::string& value) {
   obj.createAttribute(name, type, H5::DataSpace()).write(type, &c);
 }
 
-double get_double(const H5::H5Object& obj, const char* name) {
-  return get_scalar<double>(obj, name, H5::PredType::NATIVE_DOUBLE);
-}
-std::int64_t get_int64(const H5::H5Object& obj, const char* name) {
-  return get_scalar<std::int64_t>(obj, name, H5::PredType::NATIVE_INT64);
-}
-int get_int(const H5::H5Object& obj, const char* name) {
-  return get_scalar<int>(obj, name, H5::PredType::NATIVE_INT);
-}
-std::string get_string(const H5::H5Object& obj, const char* name) {
-  if (!obj.attrExists(name)) throw std::runtime_error(std::string("missing attribute ") + name);
-  H5::Attribute attr = obj.openAttribute(name);
-  std::string value;
-  attr.read(attr.getStrType(), value);
-  return value;
-}
-bool has_attr(const H5::H5Object& obj, const char* name) { return obj.attrExists(name); }
 
 void copy_attributes(const H5::H5Object& from, H5::H5Object& to) {
   for (int i = 0, n = from.getNumAttrs(); i < n; ++i) {
@@ -157,12 +130,29 @@ void copy_attributes(const H5::H5Object& from, H5::H5Object& to) {
     if (memory < 0) throw std::runtime_error("cannot copy attribute " + attr.getName());
     std::vector<char> buffer(std::size_t(space.getSimpleExtentNpoints()) * H5Tget_size(memory) + 1);
     const bool ok = H5Aread(attr.getId(), memory, buffer.data()) >= 0;
-    H5::Attribute copy = to.createAttribute(attr.getName(), type, space);
-    const bool written = ok && H5Awrite(copy.getId(), memory, buffer.data()) >= 0;
+    bool written = false;
+    try {
+      H5::Attribute copy = to.createAttribute(attr.getName(), type, space);
+      written = ok && H5Awrite(copy.getId(), memory, buffer.data()) >= 0;
+    } catch (const H5::Exception&) {  // too large for an attribute of stf's files, say
+    }
     if (ok && (H5Tdetect_class(memory, H5T_VLEN) > 0 || H5Tis_variable_str(memory) > 0))
       H5Dvlen_reclaim(memory, space.getId(), H5P_DEFAULT, buffer.data());
     H5Tclose(memory);
-    if (!written) throw std::runtime_error("cannot copy attribute " + attr.getName());
+    if (!written)
+      throw std::runtime_error("attribute '" + attr.getName() + "' cannot be copied into a new file (too large, or of a type HDF5 cannot convert)");
+  }
+}
+
+std::string attributes_error(const H5::H5Object& from) {
+  try {
+    MemoryFile scratch;
+    copy_attributes(from, scratch.file());
+    return "";
+  } catch (const H5::Exception& e) {
+    return std::string("its attributes cannot be copied into a new file: ") + e.getDetailMsg();
+  } catch (const std::runtime_error& e) {
+    return e.what();
   }
 }
 
@@ -179,6 +169,14 @@ void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>&
   put_array(group, name, dims, data, H5::PredType::NATIVE_INT8);
 }
 
+void get_rows(const H5::H5File& file, const char* path, const std::vector<hsize_t>& expect,
+              const std::function<double*(hsize_t)>& row) {
+  H5::DataSet set = open_dataset(file, path, expect);
+  H5::DataSpace memory(1, &expect.back());
+  for (hsize_t r = 0, rows = product(expect) / expect.back(); r < rows; ++r)
+    set.read(row(r), H5::PredType::NATIVE_DOUBLE, memory, row_space(set, expect, r));
+}
+
 void put_rows(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
               const std::function<const double*(hsize_t)>& row) {
   H5::DataSet set = create(group, name, dims, sizeof(double), H5::PredType::NATIVE_DOUBLE);
@@ -187,30 +185,5 @@ void put_rows(H5::Group& group, const char* name, const std::vector<hsize_t>& di
     set.write(row(r), H5::PredType::NATIVE_DOUBLE, memory, row_space(set, dims, r));
 }
 
-void get_rows(const H5::H5File& file, const char* path, const std::vector<hsize_t>& expect,
-              const std::function<double*(hsize_t)>& row) {
-  if (dataset_shape(file, path) != expect) throw std::runtime_error(std::string("unexpected shape of ") + path);
-  H5::DataSet set = file.openDataSet(path);
-  H5::DataSpace memory(1, &expect.back());
-  for (hsize_t r = 0, rows = product(expect) / expect.back(); r < rows; ++r)
-    set.read(row(r), H5::PredType::NATIVE_DOUBLE, memory, row_space(set, expect, r));
-}
-
-std::vector<double> get_dataset(const H5::H5File& file, const char* path,
-                                const std::vector<hsize_t>& expect) {
-  return get_array<double>(file, path, expect, H5::PredType::NATIVE_DOUBLE);
-}
-std::vector<std::int32_t> get_int_dataset(const H5::H5File& file, const char* path,
-                                          const std::vector<hsize_t>& expect) {
-  return get_array<std::int32_t>(file, path, expect, H5::PredType::NATIVE_INT32);
-}
-
-std::vector<hsize_t> dataset_shape(const H5::H5File& file, const char* path) {
-  if (!file.nameExists(path)) throw std::runtime_error(std::string("missing dataset ") + path);
-  H5::DataSpace space = file.openDataSet(path).getSpace();
-  std::vector<hsize_t> dims(space.getSimpleExtentNdims());
-  space.getSimpleExtentDims(dims.data());
-  return dims;
-}
 
 }  // namespace stf::h5

@@ -5,6 +5,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -37,6 +38,9 @@ std::string npy_field(const std::string& header, const std::string& key) {
   return header.substr(from, to - from);
 }
 
+std::string printable(std::string_view text);
+void check_total(const std::vector<double>& counts, const std::string& path);
+
 template <typename T>
 void widen(const char* data, std::size_t count, std::vector<double>& out) {
   for (std::size_t i = 0; i < count; ++i) {
@@ -64,10 +68,10 @@ std::vector<double> read_npy_counts(const std::string& path, int alpha_bins, std
   const std::string shape = npy_field(header, "shape");
   const std::string want = "(" + std::to_string(alpha_bins) + ", " + std::to_string(cells) + ")";
   if (order != "False") throw bad("the array must be in C order (fortran_order False)");
-  if (shape != want) throw bad("the array's shape is " + shape + "; --alpha-bins and --grid need " + want);
+  if (shape != want) throw bad("the array's shape is " + printable(shape) + "; --alpha-bins and --grid need " + want);
   const std::size_t count = std::size_t(alpha_bins) * std::size_t(cells);
   const std::size_t size = descr == "'<f8'" || descr == "'<i8'" ? 8 : descr == "'<f4'" || descr == "'<i4'" ? 4 : 0;
-  if (size == 0) throw bad("dtype " + descr + " is not little-endian float64, float32, int64 or int32");
+  if (size == 0) throw bad("dtype " + printable(descr) + " is not little-endian float64, float32, int64 or int32");
   if (bytes.size() - start != count * size) throw bad("the data are not " + std::to_string(count) + " values");
   std::vector<double> counts(count);
   const char* data = bytes.data() + start;
@@ -79,22 +83,55 @@ std::vector<double> read_npy_counts(const std::string& path, int alpha_bins, std
     if (!(std::isfinite(counts[i]) && counts[i] >= 0))
       throw bad("negative or non-finite count at alpha bin " + std::to_string(i / std::size_t(cells)) + ", cell " +
                 std::to_string(i % std::size_t(cells)));
+  check_total(counts, path);
   return counts;
 }
 
 namespace {
 
-// Up to five fields of one line, split at runs of commas and white space; a `#` ends the line.
+// The fields of one line, split at runs of commas and white space (the first four kept in
+// `field`); a `#` ends the line. Returns how many there are.
 int split_fields(std::string_view line, std::string_view* field) {
   if (const std::size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
   constexpr std::string_view kSeparators = ", \t\r";
   int n = 0;
-  for (std::size_t at = line.find_first_not_of(kSeparators); at != std::string_view::npos && n < 5;) {
+  for (std::size_t at = line.find_first_not_of(kSeparators); at != std::string_view::npos; ++n) {
     const std::size_t end = std::min(line.find_first_of(kSeparators, at), line.size());
-    field[n++] = line.substr(at, end - at);
+    if (n < 4) field[n] = line.substr(at, end - at);
     at = line.find_first_not_of(kSeparators, end);
   }
   return n;
+}
+
+// Text from a file for a message: bytes outside printable ASCII as \xNN (a NUL would end the
+// line early), at most 80 characters.
+std::string printable(std::string_view text) {
+  std::string out;
+  for (char c : text.substr(0, 80)) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u >= 0x20 && u < 0x7f) {
+      out += c;
+    } else {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02x", u);
+      out += hex;
+    }
+  }
+  return text.size() > 80 ? out + "..." : out;
+}
+
+// The counts' total must be finite and, for whole-number counts, exact in float64: a table
+// whose weights sum to infinity, or whose count is not the sum of its cells, is no table.
+void check_total(const std::vector<double>& counts, const std::string& path) {
+  double total = 0;
+  bool whole = true;
+  for (double c : counts) {
+    total += c;
+    whole = whole && c == std::floor(c);
+  }
+  if (!std::isfinite(total) || total > kMaxTotalWeight)
+    throw std::runtime_error(path + ": the counts sum to " + std::to_string(total) + ", more than a table holds (2^62)");
+  if (whole && total > 0x1p53) throw std::runtime_error(path + ": the counts sum beyond 2^53, where float64 no longer counts exactly");
 }
 
 template <typename T>
@@ -113,15 +150,15 @@ struct RowReader {
     if (fields == 3) {
       std::int64_t bin, cell;
       if (!parse(f[0], bin) || !parse(f[1], cell)) return "alpha_bin and cell must be whole numbers";
-      if (bin < 0 || bin >= layout.alpha_bins) return "alpha_bin " + std::string(f[0]) + " is not in 0.." + std::to_string(layout.alpha_bins - 1);
-      if (cell < 0 || cell >= layout.cells) return "cell " + std::string(f[1]) + " is not in 0.." + std::to_string(layout.cells - 1);
+      if (bin < 0 || bin >= layout.alpha_bins) return "alpha_bin " + printable(f[0]) + " is not in 0.." + std::to_string(layout.alpha_bins - 1);
+      if (cell < 0 || cell >= layout.cells) return "cell " + printable(f[1]) + " is not in 0.." + std::to_string(layout.cells - 1);
       index = std::size_t(bin) * std::size_t(layout.cells) + std::size_t(cell);
       return "";
     }
     double alpha, theta, phi;
     if (!parse(f[0], alpha) || !parse(f[1], theta) || !parse(f[2], phi)) return "alpha, theta and phi must be numbers";
-    if (!(alpha >= 0 && alpha <= kPi)) return "alpha " + std::string(f[0]) + " is not in [0, pi]";
-    if (!(theta >= 0 && theta <= kPi)) return "theta " + std::string(f[1]) + " is not in [0, pi]";
+    if (!(alpha >= 0 && alpha <= kPi)) return "alpha " + printable(f[0]) + " is not in [0, pi]";
+    if (!(theta >= 0 && theta <= kPi)) return "theta " + printable(f[1]) + " is not in [0, pi]";
     if (!std::isfinite(phi)) return "phi must be finite";
     const auto& e = layout.alpha_edges;
     const std::size_t bin = std::min<std::size_t>(std::size_t(std::upper_bound(e.begin(), e.end(), alpha) - e.begin()) - 1,
@@ -136,9 +173,11 @@ struct RowReader {
 
 std::vector<double> read_text_counts(const std::string& path, const Table& layout, const DirectionGrid& grid) {
   const std::string text = whole_file(path);
+  if (text.find('\r') != std::string::npos && text.find('\n') == std::string::npos)
+    throw std::runtime_error(path + ": its lines end in a carriage return alone; give them line feeds (\\n)");
   std::vector<double> counts(std::size_t(layout.alpha_bins) * std::size_t(layout.cells), 0.0);
   RowReader reader{layout, grid, 0};
-  std::string_view f[5];
+  std::string_view f[4];
   std::size_t line_number = 0;
   for (std::size_t at = 0; at < text.size();) {
     const std::size_t end = std::min(text.find('\n', at), text.size());
@@ -153,14 +192,16 @@ std::vector<double> read_text_counts(const std::string& path, const Table& layou
     if (reader.fields == 0 && (n == 3 || n == 4)) reader.fields = n;
     if (n != reader.fields)
       throw bad(reader.fields == 0 ? "a row is 'alpha_bin cell count' or 'alpha theta phi count', got " + std::to_string(n) + " fields"
-                                   : "expected " + std::to_string(reader.fields) + " fields as in the first row, got " + (n > 4 ? "more" : std::to_string(n)));
+                                   : "expected " + std::to_string(reader.fields) + " fields as in the first row, got " + std::to_string(n));
     std::size_t index = 0;
     if (std::string why = reader.index_of(f, index); !why.empty()) throw bad(why);
     double count;
-    if (!parse(f[n - 1], count) || !std::isfinite(count) || count < 0) throw bad("count '" + std::string(f[n - 1]) + "' is not a finite number >= 0");
+    if (!parse(f[n - 1], count) || !std::isfinite(count) || count < 0) throw bad("count '" + printable(f[n - 1]) + "' is not a finite number >= 0");
     counts[index] += count;
+    if (!std::isfinite(counts[index])) throw bad("the counts of this row's cell sum beyond the largest number");
   }
   if (reader.fields == 0) throw std::runtime_error(path + ": no rows");
+  check_total(counts, path);
   return counts;
 }
 

@@ -94,6 +94,11 @@ void put_sparse_halves(H5::Group& group, const char* name, int bins, std::int64_
 std::map<std::uint64_t, double> get_sparse_halves(const H5::H5File& file, const char* path, int bins,
                                                   std::int64_t cells);
 
+// The most alpha bins a table may have (precompute, import and every reader), and the largest
+// weight or total it may hold (whole-number counts are exact in float64 to 2^53).
+inline constexpr int kMaxAlphaBins = 100000;
+inline constexpr double kMaxTotalWeight = 0x1p62;
+
 // The layout stf writes: a raw table's `format` and `format_version`.
 inline constexpr const char* kTableFormat = "stf-table";
 inline constexpr int kTableFormatVersion = 1;

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "grid.h"
 #include "h5io.h"
 #include "minimal_table.h"
 
@@ -17,33 +18,33 @@ using namespace h5;
 
 namespace {
 
-std::int64_t int64_or(const H5::H5File& file, const char* name, std::int64_t otherwise) {
-  return has_attr(file, name) ? get_int64(file, name) : otherwise;
+constexpr std::int64_t kMaxCount = h5::kMaxInt64;
+constexpr double kMaxWeight = kMaxTotalWeight;
+
+std::int64_t int64_or(const H5::H5File& file, const char* name, std::int64_t otherwise, std::int64_t lo) {
+  return has_attr(file, name) ? get_int64(file, name, lo, kMaxCount) : otherwise;
 }
-double double_or(const H5::H5File& file, const char* name, double otherwise) {
-  return has_attr(file, name) ? get_double(file, name) : otherwise;
+double weight_or(const H5::H5File& file, const char* name, double otherwise) {
+  return has_attr(file, name) ? get_double(file, name, 0, kMaxWeight) : otherwise;
 }
 
-// The medium as sigma_s, sigma_a, g (and radius, default 1), or as tau, albedo, g; none at all
-// leaves the table without one.
+// The medium as sigma_s, sigma_a, g (and radius, default 1), or as tau, albedo, g, each in its
+// documented range; none at all leaves the table without one.
 void read_medium(const H5::H5File& file, Table& t) {
   auto has = [&](const char* name) { return has_attr(file, name); };
+  auto g = [&] { return get_double(file, "g", std::nextafter(-1.0, 0.0), std::nextafter(1.0, 0.0)); };
   if (has("sigma_s") && has("sigma_a") && has("g")) {
-    t.medium = {get_double(file, "sigma_s"), get_double(file, "sigma_a"), get_double(file, "g"), double_or(file, "radius", 1)};
+    t.medium = {get_double(file, "sigma_s", 0, kMaxWeight), get_double(file, "sigma_a", 0, kMaxWeight), g(),
+                has("radius") ? get_double(file, "radius", 1e-300, kMaxWeight) : 1};
   } else if (has("tau") && has("albedo") && has("g")) {
-    const double tau = get_double(file, "tau"), albedo = get_double(file, "albedo");
-    t.medium = {albedo * tau, (1 - albedo) * tau, get_double(file, "g"), 1};
+    const double tau = get_double(file, "tau", 1e-300, kMaxWeight), albedo = get_double(file, "albedo", 0, 1);
+    t.medium = {albedo * tau, (1 - albedo) * tau, g(), 1};
   } else if (has("sigma_s") || has("sigma_a") || has("g") || has("tau") || has("albedo") || has("radius")) {
     throw std::runtime_error("the medium is incomplete: give sigma_s, sigma_a and g (radius optional) or tau, albedo and g");
   } else {
     const double none = std::nan("");
     t.medium = {none, none, none, none};
-    return;
   }
-  const Medium& m = t.medium;
-  // A NaN would read as "no medium" (Table::has_medium) and be dropped on the next write.
-  if (!(std::isfinite(m.sigma_s) && std::isfinite(m.sigma_a) && std::isfinite(m.g) && std::isfinite(m.radius)))
-    throw std::runtime_error("the medium's attributes must be finite numbers");
 }
 
 // Every attribute is optional (docs/formats.md, "Tables stf did not make"); totals a file lacks
@@ -55,23 +56,23 @@ void read_header(const H5::H5File& file, Table& t) {
     if (int v = get_int(file, "format_version"); v != kTableFormatVersion)
       throw std::runtime_error("unsupported table format_version " + std::to_string(v));
   read_medium(file, t);
-  t.paths = int64_or(file, "paths", -1);
-  t.seed = int64_or(file, "seed", 0);
-  t.max_scatter = int64_or(file, "max_scatter", -1);
-  t.safety_cap = int64_or(file, "safety_cap", 0);
+  t.paths = int64_or(file, "paths", -1, 1);
+  t.seed = int64_or(file, "seed", 0, h5::kMinInt64);
+  t.max_scatter = int64_or(file, "max_scatter", -1, -1);
+  t.safety_cap = int64_or(file, "safety_cap", 0, 0);
   t.grid = has_attr(file, "grid") ? get_string(file, "grid") : "";
-  t.escaped_weight = double_or(file, "escaped_weight", -1);
-  t.absorbed_weight = double_or(file, "absorbed_weight", -1);
-  t.truncated_weight = double_or(file, "truncated_weight", 0);
-  t.collisions = int64_or(file, "collisions", 0);
-  t.absorbed_collisions = int64_or(file, "absorbed_collisions", -1);
-  t.runtime_s = double_or(file, "runtime_s", 0);
+  t.escaped_weight = weight_or(file, "escaped_weight", -1);
+  t.absorbed_weight = weight_or(file, "absorbed_weight", -1);
+  t.truncated_weight = weight_or(file, "truncated_weight", 0);
+  t.collisions = int64_or(file, "collisions", 0, 0);
+  t.absorbed_collisions = int64_or(file, "absorbed_collisions", -1, 0);
+  t.runtime_s = has_attr(file, "runtime_s") ? get_double(file, "runtime_s", 0) : 0;
   t.generator = has_attr(file, "generator") ? get_string(file, "generator") : "";
   if (has_attr(file, "chunk_count")) {
-    t.chunk_first = get_int64(file, "chunk_first");
-    t.chunk_last = get_int64(file, "chunk_last");
-    t.chunk_count = get_int64(file, "chunk_count");
-    t.run_paths = get_int64(file, "run_paths");
+    t.chunk_first = get_int64(file, "chunk_first", 0);
+    t.chunk_last = get_int64(file, "chunk_last", 0);
+    t.chunk_count = get_int64(file, "chunk_count", 0);
+    t.run_paths = get_int64(file, "run_paths", 0);
   }
 }
 
@@ -82,6 +83,8 @@ void settle_totals(Table& t) {
     t.escaped_weight = 0;
     for (const auto& half : t.weight_half)
       for (double w : half) t.escaped_weight += w;
+    if (!(t.escaped_weight <= kMaxTotalWeight))
+      throw std::runtime_error("/escape/weight sums to " + std::to_string(t.escaped_weight) + ", more than a table holds (2^62)");
   }
   if (t.paths < 0)
     t.paths = std::max<std::int64_t>(1, std::int64_t(std::ceil((t.escaped_weight + std::max(0.0, t.absorbed_weight) +
@@ -126,7 +129,7 @@ void check_weight_against_halves(const H5::H5File& file, const Table& t) {
 // halves are drawn from the weights (split_halves).
 void read_weight_alone(const H5::H5File& file, Table& t) {
   for (const char* extra : {"/escape/uncollided_half", "/escape/once_half", "/escape/multiple_sub_half"})
-    if (file.nameExists(extra))
+    if (has_object(file, extra))
       throw std::runtime_error(std::string(extra) + " needs /escape/weight_half, which the file lacks");
   const std::vector<double> weight = get_dataset(file, "/escape/weight", {hsize_t(t.alpha_bins), hsize_t(t.cells)});
   for (std::size_t i = 0; i < weight.size(); ++i)
@@ -139,13 +142,40 @@ void read_weight_alone(const H5::H5File& file, Table& t) {
   t.once_tallied = false;
 }
 
+// The grid the table's cells make (or its grid attribute names, which must make as many), and
+// room for the table, checked before anything is read.
+void check_layout(const std::vector<hsize_t>& dims, Table& t) {
+  if (dims.size() != 2) throw std::runtime_error("/escape/weight is not 2D");
+  if (dims[0] < 1 || dims[0] > kMaxAlphaBins || dims[1] < 1)
+    throw std::runtime_error("/escape/weight has " + std::to_string(dims[0]) + " alpha bins (1.." +
+                             std::to_string(kMaxAlphaBins) + " allowed) and " + std::to_string(dims[1]) + " cells");
+  t.alpha_bins = int(dims[0]);
+  t.cells = std::int64_t(std::min<hsize_t>(dims[1], hsize_t(1) << 40));
+  const std::string from_cells = grid_of_cells(t.cells);
+  if (t.grid.empty() && from_cells.empty())
+    throw std::runtime_error("no grid attribute, and " + std::to_string(t.cells) +
+                             " cells are neither HEALPix (12 NSIDE^2, NSIDE a power of two) nor the cube (6 N^2)");
+  if (!t.grid.empty()) {
+    std::int64_t named = 0;
+    try {
+      named = grid_cell_count(t.grid);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(std::string("grid attribute: ") + e.what());
+    }
+    if (named != t.cells)
+      throw std::runtime_error("the grid attribute names " + t.grid + " (" + std::to_string(named) +
+                               " cells), /escape/weight has " + std::to_string(t.cells) + " cells");
+  }
+  // The weights, their two halves and a row's worth besides.
+  require_memory(3.0 * 8 * double(dims[0]) * double(dims[1]), "the table of " + std::to_string(dims[0]) + " x " +
+                                                                  std::to_string(dims[1]) + " weights");
+}
+
 void read_escapes(const H5::H5File& file, Table& t) {
   std::vector<hsize_t> dims = dataset_shape(file, "/escape/weight");
-  if (dims.size() != 2) throw std::runtime_error("/escape/weight is not 2D");
-  t.alpha_bins = int(dims[0]);
-  t.cells = std::int64_t(dims[1]);
+  check_layout(dims, t);
   t.alpha_edges = get_dataset(file, "/escape/alpha_edges", {dims[0] + 1});
-  if (!file.nameExists("/escape/weight_half")) {
+  if (!has_object(file, "/escape/weight_half")) {
     read_weight_alone(file, t);
     return;
   }
@@ -153,13 +183,13 @@ void read_escapes(const H5::H5File& file, Table& t) {
   get_rows(file, "/escape/weight_half", {2, dims[0], dims[1]},
            [&](hsize_t r) { return &t.weight_half[r / dims[0]][(r % dims[0]) * dims[1]]; });
   t.uncollided_half = {-1, -1};
-  if (file.nameExists("/escape/uncollided_half")) {
+  if (has_object(file, "/escape/uncollided_half")) {
     std::vector<double> u = get_dataset(file, "/escape/uncollided_half", {2});
     t.uncollided_half = {u[0], u[1]};
   }
-  t.once_tallied = file.nameExists("/escape/once_half");
+  t.once_tallied = has_object(file, "/escape/once_half");
   if (t.once_tallied) t.once = get_sparse_halves(file, "/escape/once_half", t.alpha_bins, t.cells);
-  if (file.nameExists("/escape/multiple_sub_half")) {
+  if (has_object(file, "/escape/multiple_sub_half")) {
     std::vector<hsize_t> sub = dataset_shape(file, "/escape/multiple_sub_half");
     if (sub.size() != 3 || sub[0] != 2 || sub[1] != dims[0] || sub[2] < 1 || sub[2] > 1024)
       throw std::runtime_error("/escape/multiple_sub_half is not [2, alpha_bins, sub_bins]");
@@ -176,20 +206,12 @@ void read_grid(const H5::H5File& file, Table& t) {
   std::vector<double> dir = get_dataset(file, "/grid/direction", {cells, 3});
   t.direction.resize(cells);
   for (std::size_t i = 0; i < cells; ++i) t.direction[i] = {dir[3 * i], dir[3 * i + 1], dir[3 * i + 2]};
-  // A table stf did not make is checked against the grid it names, or the one its cells make.
-  if (t.halves == Halves::kTallied && !t.grid.empty()) return;
+  // Every table is checked against the grid it names, or the one its cells make (check_layout):
+  // a wrong numbering, a negated direction or a file edited after it was written.
   const bool named = !t.grid.empty();
   if (!named) t.grid = grid_of_cells(t.cells);
-  if (t.grid.empty())
-    throw std::runtime_error("no grid attribute, and " + std::to_string(t.cells) +
-                             " cells are neither HEALPix (12 NSIDE^2, NSIDE a power of two) nor the cube (6 N^2)");
-  std::string why;
-  try {
-    why = grid_mismatch(t.grid, t.direction);
-  } catch (const std::invalid_argument& e) {
-    why = std::string("grid attribute: ") + e.what();
-  }
-  if (!why.empty()) throw std::runtime_error(why + (named ? "" : " (grid recognised from the cell count)"));
+  if (std::string why = grid_mismatch(t.grid, t.direction); !why.empty())
+    throw std::runtime_error(why + (named ? "" : " (grid recognised from the cell count)"));
 }
 
 }  // namespace

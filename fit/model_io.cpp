@@ -175,21 +175,24 @@ StfModel get_header(H5::H5File& file) {
   m.kind = kind == "vmf" ? ModelKind::kVmf : ModelKind::kSh;
   const bool medium = has_attr(file, "tau");
   for (const auto& [name, field] : kMedium) m.*field = medium ? get_double(file, name) : std::nan("");
-  for (const auto& [name, field] : kFractions) m.*field = get_double(file, name);
-  m.hemispherical = get_int(file, "hemispherical") != 0;
-  m.alpha_blend = get_int(file, "alpha_blend");
+  for (const auto& [name, field] : kFractions) m.*field = get_double(file, name, 0, 1);
+  m.hemispherical = get_int(file, "hemispherical", 0, 1) != 0;
+  m.alpha_blend = get_int(file, "alpha_blend", 0, StfModel::kMaxBlend);
   return m;
 }
 
 // /alpha: the marginal, edges and status, and the optional tilts, turns and blend widths.
 void get_alpha(H5::H5File& file, StfModel& m) {
-  m.alpha_probability = get_dataset(file, "/alpha/probability", {});
+  const std::vector<hsize_t> shape = dataset_shape(file, "/alpha/probability");
+  if (shape.size() != 1 || shape[0] < 1 || shape[0] > hsize_t(kMaxModelBins))
+    throw std::runtime_error("/alpha/probability must hold 1.." + std::to_string(kMaxModelBins) + " alpha bins");
+  m.alpha_probability = get_dataset(file, "/alpha/probability", shape);
   const hsize_t bins = m.alpha_probability.size();
   m.alpha_edges = get_dataset(file, "/alpha/edges", {bins + 1});
   for (std::int32_t s : get_int_dataset(file, "/alpha/status", {bins})) m.status.push_back(BinStatus(s));
-  if (file.nameExists("/alpha/tilt")) m.alpha_tilt = get_dataset(file, "/alpha/tilt", {bins});
-  if (file.nameExists("/alpha/turn")) m.alpha_turn = get_dataset(file, "/alpha/turn", {bins});
-  if (file.nameExists("/alpha/blend"))
+  if (has_object(file, "/alpha/tilt")) m.alpha_tilt = get_dataset(file, "/alpha/tilt", {bins});
+  if (has_object(file, "/alpha/turn")) m.alpha_turn = get_dataset(file, "/alpha/turn", {bins});
+  if (has_object(file, "/alpha/blend"))
     for (std::int32_t h : get_int_dataset(file, "/alpha/blend", {bins})) m.alpha_blend_width.push_back(h);
 }
 
@@ -197,8 +200,7 @@ void get_alpha(H5::H5File& file, StfModel& m) {
 void get_directions(H5::H5File& file, StfModel& m) {
   const hsize_t bins = m.alpha_probability.size();
   if (m.kind == ModelKind::kVmf) {
-    m.lobes = get_int(file.openGroup("/vmf"), "lobes");
-    if (m.lobes < 1 || m.lobes > 64) throw std::runtime_error("vMF lobe count out of range");
+    m.lobes = get_int(open_group(file, "/vmf"), "lobes", 1, kMaxLobes);
     const hsize_t k = hsize_t(m.lobes);
     std::vector<double> w = get_dataset(file, "/vmf/weight", {bins, k});
     std::vector<double> kappa = get_dataset(file, "/vmf/kappa", {bins, k});
@@ -206,13 +208,14 @@ void get_directions(H5::H5File& file, StfModel& m) {
     for (std::size_t i = 0; i < w.size(); ++i) m.vmf.push_back({w[i], kappa[i], {mean[3 * i], mean[3 * i + 1], mean[3 * i + 2]}});
     return;
   }
-  H5::Group g = file.openGroup("/sh");
-  m.band_limit = get_int(g, "band_limit");
-  m.sh_nz = get_int(g, "table_nz");
-  if (m.band_limit < 0 || m.band_limit > 64 || m.sh_nz < 1 || m.sh_nz > 4096)
-    throw std::runtime_error("SH band limit or table size out of range");
+  H5::Group g = open_group(file, "/sh");
+  m.band_limit = get_int(g, "band_limit", 0, kMaxBandLimit);
+  m.sh_nz = get_int(g, "table_nz", 1, kMaxShNz);
+  m.alpha_degree = get_int(g, "alpha_degree", -1, kMaxAlphaDegree);
+  // Before the tables are built: their size follows from these.
+  if (std::string why = model_size_error(true, double(bins), m.band_limit, m.sh_nz, m.alpha_degree); !why.empty())
+    throw std::runtime_error(why);
   m.sh = get_dataset(file, "/sh/coefficients", {bins, hsize_t(sh_count(m.band_limit))});
-  m.alpha_degree = get_int(g, "alpha_degree");
   if (m.alpha_degree >= 0)
     m.sh_chebyshev =
         get_dataset(file, "/sh/chebyshev", {hsize_t(m.alpha_degree + 1), hsize_t(sh_count(m.band_limit))});
@@ -257,6 +260,7 @@ std::vector<double> read_chi2_dof(const std::string& path) {
 }
 
 StfModel read_model_or_pack(const std::string& path) {
+  ReadingInput reading;
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error("'" + path + "': " + std::strerror(errno));
   char magic[8] = {};
@@ -275,10 +279,14 @@ StfModel read_model_or_pack(const std::string& path) {
 std::string file_format(const std::string& path) {
   try {
     H5::Exception::dontPrint();
-    H5::H5File file(path, H5F_ACC_RDONLY);
+    ReadingInput reading;
+    H5::H5File file = open_file(path);
     return has_attr(file, "format") ? get_string(file, "format") : "";
   } catch (const H5::Exception&) {
     return "";
+  } catch (const std::runtime_error& e) {  // a checksum that does not match (named), a bad attribute
+    const std::string what = e.what();
+    throw std::runtime_error(what.rfind(path, 0) == 0 ? what : path + ": " + what);
   }
 }
 

@@ -96,21 +96,22 @@ Progress read_checkpoint(const std::string& path, const std::string& fingerprint
   using namespace h5;
   try {
     H5::Exception::dontPrint();
-    H5::H5File file(path, H5F_ACC_RDONLY);
+    ReadingInput reading;
+    H5::H5File file = open_file(path);
     if (!has_attr(file, "format") || get_string(file, "format") != "stf-checkpoint")
       throw std::runtime_error(path + " is not an stf checkpoint");
     if (std::string run = get_string(file, "run"); run != fingerprint)
       throw std::runtime_error("checkpoint " + path + " is of another command (" + difference(run, fingerprint) + ")");
     Progress p;
     p.tally = Tally(alpha_bins, cells);
-    p.tally.escaped = std::uint64_t(get_int64(file, "escaped"));
-    p.tally.absorbed = std::uint64_t(get_int64(file, "absorbed"));
-    p.tally.truncated = std::uint64_t(get_int64(file, "truncated"));
-    p.tally.collisions = std::uint64_t(get_int64(file, "collisions"));
+    p.tally.escaped = std::uint64_t(get_int64(file, "escaped", 0));
+    p.tally.absorbed = std::uint64_t(get_int64(file, "absorbed", 0));
+    p.tally.truncated = std::uint64_t(get_int64(file, "truncated", 0));
+    p.tally.collisions = std::uint64_t(get_int64(file, "collisions", 0));
     p.tally.absorbed_collisions_known = has_attr(file, "absorbed_collisions");
-    if (p.tally.absorbed_collisions_known) p.tally.absorbed_collisions = std::uint64_t(get_int64(file, "absorbed_collisions"));
-    p.tally.uncollided[0] = std::uint64_t(get_int64(file, "uncollided_even"));
-    p.tally.uncollided[1] = std::uint64_t(get_int64(file, "uncollided_odd"));
+    if (p.tally.absorbed_collisions_known) p.tally.absorbed_collisions = std::uint64_t(get_int64(file, "absorbed_collisions", 0));
+    p.tally.uncollided[0] = std::uint64_t(get_int64(file, "uncollided_even", 0));
+    p.tally.uncollided[1] = std::uint64_t(get_int64(file, "uncollided_odd", 0));
     for (std::int32_t d : get_int_dataset(file, "/done", {hsize_t(range.last - range.first)})) p.done.push_back(char(d != 0));
     const hsize_t bins = hsize_t(alpha_bins);
     get_rows(file, "/counts", {2, bins, hsize_t(cells)},

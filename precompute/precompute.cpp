@@ -39,8 +39,8 @@ std::optional<std::string> validate(const Medium& m, const PrecomputeSettings& s
     return "--sigma-s and --sigma-a must not both be 0 (a vacuum has no table)";
   if (!(std::isfinite(m.tau()) && m.tau() <= kMaxTau))
     return "--radius times (--sigma-s + --sigma-a) must be at most " + number(kMaxTau) + ", got " + number(m.tau());
-  if (s.alpha_bins < 1 || s.alpha_bins > 100000)
-    return "--alpha-bins must be in 1..100000, got " + std::to_string(s.alpha_bins);
+  if (s.alpha_bins < 1 || s.alpha_bins > kMaxAlphaBins)
+    return "--alpha-bins must be in 1.." + std::to_string(kMaxAlphaBins) + ", got " + std::to_string(s.alpha_bins);
   if (s.paths < 1) return "--paths must be at least 1, got " + std::to_string(s.paths);
   if (s.parts < 1 || s.part < 0 || s.part >= s.parts)
     return "--shard K/N needs 0 <= K < N, got " + std::to_string(s.part) + "/" + std::to_string(s.parts);

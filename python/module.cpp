@@ -7,11 +7,13 @@
 #include <pybind11/stl.h>
 
 #include <algorithm>
+#include <cmath>
 #include <memory>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "arrays.h"
 #include "model_io.h"
 #include "stf/lookup.h"
 #include "stf/pack.h"
@@ -22,101 +24,13 @@ namespace py = pybind11;
 
 namespace stf::python {
 
-namespace {
-
-// Errors carry the command line's one line (without its "stf: error: ").
-struct Error : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-using Doubles = py::array_t<double, py::array::c_style | py::array::forcecast>;
-
-std::string shape_of(const Doubles& a) {
-  std::string shape;
-  for (py::ssize_t d = 0; d < a.ndim(); ++d) shape += (d ? ", " : "") + std::to_string(a.shape(d));
-  return "[" + shape + "]";
-}
-
-// The rows of an [n, 3] array (or [n] when `columns` is 0), checked; `what` names it.
-const double* rows_of(const Doubles& a, py::ssize_t n, int columns, const char* what) {
-  const bool ok = columns == 0 ? a.ndim() == 1 && a.shape(0) == n
-                               : a.ndim() == 2 && a.shape(0) == n && a.shape(1) == columns;
-  if (!ok)
-    throw Error(std::string(what) + " must be an array of shape [" + std::to_string(n) +
-                (columns ? ", " + std::to_string(columns) : "") + "], got " + shape_of(a));
-  return a.data();
-}
-
-py::ssize_t count_of(const Doubles& a, const char* what) {
-  if (a.ndim() != 2 || a.shape(1) != 3)
-    throw Error(std::string(what) + " must be an array of shape [n, 3], got " + shape_of(a));
-  return a.shape(0);
-}
-
-// Runs body(first, last) over `threads` threads (0: all cores) in contiguous pieces, without the
-// GIL; pieces of fewer than 65536 items are not worth a thread.
-template <typename Body>
-void in_parallel(py::ssize_t n, int threads, Body body) {
-  const int cores = int(std::max(1u, std::thread::hardware_concurrency()));
-  const int t = int(
-      std::max<py::ssize_t>(1, std::min<py::ssize_t>(threads > 0 ? threads : cores, n / 65536)));
-  py::gil_scoped_release release;
-  std::vector<std::thread> pool;
-  try {
-    for (int k = 1; k < t; ++k) pool.emplace_back(body, n * k / t, n * (k + 1) / t);
-  } catch (...) {  // no thread to be had: those started finish, the rest runs here
-    for (int k = int(pool.size()) + 1; k < t; ++k) body(n * k / t, n * (k + 1) / t);
-  }
-  body(py::ssize_t(0), n / t);
-  for (std::thread& th : pool) th.join();
-}
-
-Vec3 vec(const double* p, py::ssize_t i) {
-  return {p[3 * i], p[3 * i + 1], p[3 * i + 2]};
-}
-void put(double* p, py::ssize_t i, const Vec3& v) {
-  p[3 * i] = v.x, p[3 * i + 1] = v.y, p[3 * i + 2] = v.z;
-}
-
-// The arrays of n exits (as `stf sample -o` lays them out), filled without the GIL.
-struct Exits {
-  explicit Exits(py::ssize_t n)
-      : point({n, py::ssize_t(3)}),
-        direction({n, py::ssize_t(3)}),
-        pdf(n),
-        component(n),
-        p(point.mutable_data()),
-        d(direction.mutable_data()),
-        f(pdf.mutable_data()),
-        c(component.mutable_data()) {}
-  void set(py::ssize_t i, const Vec3& exit_point, const Vec3& exit_direction, double density,
-           int part) {
-    put(p, i, exit_point), put(d, i, exit_direction), f[i] = density, c[i] = std::int8_t(part);
-  }
-  py::dict dict() const {
-    py::dict out;
-    out["exit_point"] = point, out["exit_direction"] = direction, out["pdf"] = pdf,
-    out["component"] = component;
-    return out;
-  }
-  Doubles point, direction, pdf;
-  py::array_t<std::int8_t> component;
-  double *p, *d, *f;
-  std::int8_t* c;
-};
-
-}  // namespace
-
 // A fitted model with its sampler (stf.Model).
 class Model {
  public:
   explicit Model(StfModel model) : sampler_(std::make_shared<ShellSampler>(std::move(model))) {}
   static Model read(const std::string& path) {
-    try {
-      return Model(fit::read_model_or_pack(path));
-    } catch (const std::runtime_error& e) {
-      throw Error(e.what());
-    }
+    refuse_nul(path);
+    return Model(fit::read_model_or_pack(path));
   }
   const StfModel& model() const { return sampler_->model(); }
 
@@ -158,6 +72,8 @@ class Model {
     const double *x = rows_of(positions, n, 3, "positions"),
                  *w = rows_of(directions, n, 3, "directions");
     const double *r = rows_of(radii, n, 0, "radii"), *u = rows_of(uniforms, n, 4, "uniforms");
+    check_paths(x, w, r, n, true);
+    check_uniforms(u, n);
     Exits out(n);
     in_parallel(n, threads, [&](py::ssize_t first, py::ssize_t last) {
       for (py::ssize_t i = first; i < last; ++i) {
@@ -189,6 +105,7 @@ class Spheres {
   py::dict jump(const Doubles& positions, const Doubles& directions, const Doubles& free_radii,
                 double sigma_t, const Doubles& uniforms, int threads) const {
     const double* u = rows_of(uniforms, count_of(positions, "positions"), 4, "uniforms");
+    check_uniforms(u, count_of(positions, "positions"));
     return strides_of(positions, directions, free_radii, sigma_t, threads,
                       [&](int k, const Vec3& x, const Vec3& w, double r, py::ssize_t i) {
                         const double* v = u + 4 * i;
@@ -219,7 +136,8 @@ class Spheres {
     const double *x = rows_of(positions, n, 3, "positions"),
                  *w = rows_of(directions, n, 3, "directions");
     const double* r = rows_of(free_radii, n, 0, "free_radii");
-    if (!(sigma_t > 0)) throw Error("sigma_t must be > 0");
+    if (!(std::isfinite(sigma_t) && sigma_t > 0)) throw Error("sigma_t must be a finite number > 0");
+    check_paths(x, w, r, n, false);
     Doubles point({n, py::ssize_t(3)}), direction({n, py::ssize_t(3)}), weight(n);
     py::array_t<std::int32_t> sphere(n);
     double *p = point.mutable_data(), *d = direction.mutable_data(), *q = weight.mutable_data();
@@ -249,6 +167,7 @@ class Spheres {
 class Pack {
  public:
   explicit Pack(const std::string& path) {
+    refuse_nul(path);
     std::string error;
     if (!read_pack_file(path, entries_, error)) throw Error(path + ": " + error);
     for (const PackEntry& e : entries_) models_.emplace_back(e.model);
@@ -277,9 +196,30 @@ class Pack {
   std::vector<Model> models_;
 };
 
+// `self` of a method: an object made by __new__ without __init__ holds nothing to use (pybind11
+// would hand the method uninitialised memory), so its holder must have been constructed.
+template <typename T>
+const T& self(py::handle h) {
+  if (!py::isinstance<T>(h)) throw Error("a method of an stf object called on another object");
+  auto* instance = reinterpret_cast<py::detail::instance*>(h.ptr());
+  const py::detail::value_and_holder v = instance->get_value_and_holder(py::detail::get_type_info(typeid(T)));
+  if (!v.holder_constructed())
+    throw Error("this object was never constructed: make it with stf.Model(path) or stf.Pack(path)");
+  return *v.template value_ptr<T>();
+}
+
+// A const member function as a method whose `self` is checked.
+template <typename C, typename R, typename... A>
+auto checked(R (C::*f)(A...) const) {
+  return [f](py::handle c, A... a) -> R { return (self<C>(c).*f)(std::forward<A>(a)...); };
+}
+
 }  // namespace stf::python
 
 namespace {
+
+using stf::python::checked;
+using stf::python::self;
 
 using stf::python::Model;
 using stf::python::Pack;
@@ -293,72 +233,77 @@ void add_model(py::module_& m) {
   py::class_<Model>(m, "Model",
                     "A fitted model (stf fit -o) or a pack's first entry, with its sampler")
       .def(py::init(&Model::read), py::arg("path"))
-      .def("sample", &Model::sample, py::arg("n"), py::arg("seed") = 1, py::arg("threads") = 0,
+      .def("sample", checked(&Model::sample), py::arg("n"), py::arg("seed") = 1, py::arg("threads") = 0,
            "n exits as numpy arrays: the draws of `stf sample --count n --seed seed`, bit for bit")
-      .def("pdf", &Model::pdf, py::arg("exit_point"), py::arg("exit_direction"),
+      .def("pdf", checked(&Model::pdf), py::arg("exit_point"), py::arg("exit_direction"),
            py::arg("threads") = 0,
            "The smooth part's density at [n, 3] exit points and directions, as `stf sample --eval`")
-      .def("sample_world", &Model::sample_world, py::arg("positions"), py::arg("directions"),
+      .def("sample_world", checked(&Model::sample_world), py::arg("positions"), py::arg("directions"),
            py::arg("radii"), py::arg("uniforms"), py::arg("threads") = 0,
            "Exits of paths at positions heading directions through spheres of these radii, one row "
            "of "
            "four uniforms in [0, 1) per draw")
-      .def_property_readonly("tau", [](const Model& s) { return s.model().tau; })
-      .def_property_readonly("albedo", [](const Model& s) { return s.model().albedo; })
-      .def_property_readonly("g", [](const Model& s) { return s.model().g; })
-      .def_property_readonly("sigma_s", [](const Model& s) { return s.model().sigma_s; })
-      .def_property_readonly("sigma_a", [](const Model& s) { return s.model().sigma_a; })
-      .def_property_readonly("radius", [](const Model& s) { return s.model().radius; })
+      .def_property_readonly("tau", [](py::handle s) { return self<Model>(s).model().tau; })
+      .def_property_readonly("albedo", [](py::handle s) { return self<Model>(s).model().albedo; })
+      .def_property_readonly("g", [](py::handle s) { return self<Model>(s).model().g; })
+      .def_property_readonly("sigma_s", [](py::handle s) { return self<Model>(s).model().sigma_s; })
+      .def_property_readonly("sigma_a", [](py::handle s) { return self<Model>(s).model().sigma_a; })
+      .def_property_readonly("radius", [](py::handle s) { return self<Model>(s).model().radius; })
       .def_property_readonly("escape_probability",
-                             [](const Model& s) { return s.model().escape_probability; })
+                             [](py::handle s) { return self<Model>(s).model().escape_probability; })
       // The singular parts' probabilities among the exits (component 1 and 2 of sample()).
       .def_property_readonly("uncollided_probability",
-                             [](const Model& s) { return s.model().uncollided_probability(); })
+                             [](py::handle s) { return self<Model>(s).model().uncollided_probability(); })
       .def_property_readonly("once_probability",
-                             [](const Model& s) { return s.model().once_fraction; })
-      .def_property_readonly("alpha_bins", [](const Model& s) { return s.model().bins(); })
+                             [](py::handle s) { return self<Model>(s).model().once_fraction; })
+      .def_property_readonly("alpha_bins", [](py::handle s) { return self<Model>(s).model().bins(); })
       .def_property_readonly("alpha_edges",
-                             [](const Model& s) { return array_of(s.model().alpha_edges); })
+                             [](py::handle s) { return array_of(self<Model>(s).model().alpha_edges); })
       .def_property_readonly("alpha_probability",
-                             [](const Model& s) { return array_of(s.model().alpha_probability); })
+                             [](py::handle s) { return array_of(self<Model>(s).model().alpha_probability); })
       .def_property_readonly("family",
-                             [](const Model& s) { return s.model().family(); })
+                             [](py::handle s) { return self<Model>(s).model().family(); })
       .def_property_readonly("size",
-                             [](const Model& s) {
-                               return s.model().kind == stf::ModelKind::kSh ? s.model().band_limit
-                                                                            : s.model().lobes;
+                             [](py::handle p) {
+                               const stf::StfModel& m = self<Model>(p).model();
+                               return m.kind == stf::ModelKind::kSh ? m.band_limit : m.lobes;
                              })
-      .def("__repr__", [](const Model& s) {
-        return "<stf.Model tau " + std::to_string(s.model().tau) + " albedo " +
-               std::to_string(s.model().albedo) + " g " + std::to_string(s.model().g) + ">";
+      .def("__repr__", [](py::handle p) {
+        auto* instance = reinterpret_cast<py::detail::instance*>(p.ptr());
+        if (!instance->get_value_and_holder(py::detail::get_type_info(typeid(Model))).holder_constructed())
+          return std::string("<stf.Model, not constructed>");
+        const stf::StfModel& m = self<Model>(p).model();
+        return "<stf.Model tau " + std::to_string(m.tau) + " albedo " + std::to_string(m.albedo) + " g " +
+               std::to_string(m.g) + ">";
       });
 }
 
 void add_pack(py::module_& m) {
   py::class_<Spheres>(m, "Spheres", "The spheres of one medium of a pack, for striding through it")
-      .def("__len__", &Spheres::size)
-      .def("jump", &Spheres::jump, py::arg("positions"), py::arg("directions"),
+      .def("__len__", checked(&Spheres::size))
+      .def("jump", checked(&Spheres::jump), py::arg("positions"), py::arg("directions"),
            py::arg("free_radii"), py::arg("sigma_t"), py::arg("uniforms"), py::arg("threads") = 0,
            "One stride per path through the largest sphere that fits its free radius: dict of "
            "point, "
            "direction, weight (the sphere's escape probability) and sphere (-1: none fits, path "
            "unchanged)")
-      .def("stride", &Spheres::stride, py::arg("positions"), py::arg("directions"),
+      .def("stride", checked(&Spheres::stride), py::arg("positions"), py::arg("directions"),
            py::arg("free_radii"), py::arg("sigma_t"), py::arg("seed"), py::arg("threads") = 0,
            "jump through each sphere's stride form (what stf render draws), each path's uniforms "
            "from its own stream of `seed`");
   py::class_<Pack>(m, "Pack", "A pack of models (stf pack, stf build)")
       .def(py::init<const std::string&>(), py::arg("path"))
-      .def("__len__", &Pack::size)
+      .def("__len__", checked(&Pack::size))
       .def("__getitem__",
-           [](const Pack& p, py::ssize_t i) {
+           [](py::handle pack, py::ssize_t i) {
+             const Pack& p = self<Pack>(pack);
              if (i < 0) i += p.size();
              if (i < 0 || i >= p.size()) throw py::index_error("pack entry out of range");
              return py::make_tuple(p.name(i), p.model(i));
            })
-      .def("find", &Pack::find, py::arg("tau"), py::arg("albedo"), py::arg("g"),
+      .def("find", checked(&Pack::find), py::arg("tau"), py::arg("albedo"), py::arg("g"),
            "The entry of this albedo and g with the largest tau not above tau, or None")
-      .def("spheres", &Pack::spheres, py::arg("name"), "The spheres of the medium `name`");
+      .def("spheres", checked(&Pack::spheres), py::arg("name"), "The spheres of the medium `name`");
 }
 
 }  // namespace
@@ -366,7 +311,22 @@ void add_pack(py::module_& m) {
 PYBIND11_MODULE(stf, m) {
   m.doc() = "stf: shell transport functions (models, packs and their samplers)";
   m.attr("__version__") = STF_VERSION;
-  py::register_exception<stf::python::Error>(m, "Error", PyExc_ValueError);
+  static py::exception<stf::python::Error> error = py::register_exception<stf::python::Error>(m, "Error", PyExc_ValueError);
+  // Every error the library raises reaches Python as stf.Error with its one line; pybind11's own
+  // (index and cast errors) and out-of-memory stay what they are.
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const py::builtin_exception&) {
+      throw;
+    } catch (const std::bad_alloc&) {
+      throw;
+    } catch (const stf::python::Error&) {
+      throw;
+    } catch (const std::exception& e) {
+      error(e.what());
+    }
+  });
   add_model(m);
   add_pack(m);
 }

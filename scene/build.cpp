@@ -127,6 +127,8 @@ std::vector<std::uint8_t> scene_pack(const Scene& scene, const Plan& plan) {
     for (const PlanEntry& e : plan.entries) {  // entries of one medium are in increasing tau
       if (e.action == "skip" || std::find(e.media.begin(), e.media.end(), m.name) == e.media.end()) continue;
       pack.push_back({m.name, fit::read_model(model_path(plan, e))});
+      if (std::string why = pack_entry_error(pack.back()); !why.empty())
+        throw std::runtime_error(model_path(plan, e) + " cannot go into a pack: " + why);
     }
   return write_pack(pack);
 }

@@ -160,14 +160,59 @@ int StfModel::blend_weights(int b, double u, int* blend_bins, double* weights) c
   return blend_hats(b, u, blend_width(b), this->bins(), blend_bins, weights);
 }
 
+std::string model_size_error(bool sh, double bins, double size, double nz, double degree) {
+  if (!(bins >= 1 && bins <= kMaxModelBins)) return "alpha bins out of range [1, " + std::to_string(kMaxModelBins) + "]";
+  if (!sh) return size >= 1 && size <= kMaxLobes ? "" : "vMF lobe count out of range [1, " + std::to_string(kMaxLobes) + "]";
+  if (!(size >= 0 && size <= kMaxBandLimit && nz >= 1 && nz <= kMaxShNz && degree >= -1 && degree <= kMaxAlphaDegree))
+    return "SH band limit, table rows or alpha degree out of range ([0, " + std::to_string(kMaxBandLimit) + "], [1, " +
+           std::to_string(kMaxShNz) + "], [-1, " + std::to_string(kMaxAlphaDegree) + "])";
+  if (bins * nz * nz * 2 > kMaxShTableCells) return "SH tables of all alpha bins would exceed 2^27 cells";
+  return "";
+}
+
+std::string draw_error(const StfModel& m) {
+  if (m.once_fraction > 0 && !(m.tau <= kMaxOnceTau))
+    return "a once-scattered part at tau above " + std::to_string(int(kMaxOnceTau)) + " cannot be drawn from";
+  if (m.once_fraction < 1 && m.alpha_probability.size() > 0) {
+    double total = 0;
+    for (double p : m.alpha_probability) total += p;
+    if (!(total > 0)) return "alpha probabilities are all 0: nothing to draw";
+  }
+  return "";
+}
+
+namespace {
+
+std::string lobes_error(const StfModel& m) {
+  if (m.lobes < 1 || m.vmf.size() != std::size_t(m.bins()) * m.lobes) return "vMF lobes of the wrong count";
+  for (int b = 0; b < m.bins(); ++b) {
+    double weights = 0;
+    for (int k = 0; k < m.lobes; ++k) {
+      const VmfLobe& l = m.vmf[std::size_t(b) * m.lobes + k];
+      if (!finite_in(l.weight, 0, 1) || !finite_in(l.kappa, 0, kMaxKappa))
+        return "vMF weight or kappa out of range (weight in [0, 1], kappa in [0, " + std::to_string(kMaxKappa) + "])";
+      if (!(std::abs(length(l.mean) - 1) < 1e-6)) return "vMF mean direction is not a unit vector";
+      weights += l.weight;
+    }
+    if (std::abs(weights - 1) > 1e-6) return "vMF weights of a bin do not sum to 1";
+  }
+  return "";
+}
+
+}  // namespace
+
 std::string model_error(const StfModel& m) {
   const int bins = m.bins();
   if (bins < 1) return "no alpha bins";
+  const bool sh = m.kind == ModelKind::kSh;
+  if (std::string why = model_size_error(sh, bins, sh ? m.band_limit : m.lobes, sh ? m.sh_nz : 1, sh ? m.alpha_degree : -1);
+      !why.empty())
+    return why;
   if (!m.has_medium()) {
     if (!(std::isnan(m.albedo) && std::isnan(m.g))) return "medium incomplete (tau, albedo and g, or none of them)";
     if (m.once_fraction != 0) return "a model without a medium has no once-scattered part";
-  } else if (!(finite_in(m.tau, 0, 1e300) && m.tau > 0 && finite_in(m.albedo, 0, 1) && m.g > -1 && m.g < 1)) {
-    return "medium out of range (tau > 0, albedo in [0, 1], g in (-1, 1))";
+  } else if (!(finite_in(m.tau, 0, kMaxModelTau) && m.tau > 0 && finite_in(m.albedo, 0, 1) && m.g > -1 && m.g < 1)) {
+    return "medium out of range (tau in (0, 1e7], albedo in [0, 1], g in (-1, 1))";
   }
   if (!finite_in(m.escape_probability, 0, 1) || !finite_in(m.absorbed_fraction, 0, 1) ||
       !finite_in(m.truncated_fraction, 0, 1))
@@ -196,27 +241,17 @@ std::string model_error(const StfModel& m) {
   if (!finite_in(m.uncollided_fraction, 0, m.alpha_probability[0] * (1 + 1e-9)))
     return "uncollided fraction must be in [0, alpha probability of bin 0]";
   if (m.kind == ModelKind::kVmf) {
-    if (m.lobes < 1 || m.vmf.size() != std::size_t(bins) * m.lobes) return "vMF lobes of the wrong count";
-    for (int b = 0; b < bins; ++b) {
-      double weights = 0;
-      for (int k = 0; k < m.lobes; ++k) {
-        const VmfLobe& l = m.vmf[std::size_t(b) * m.lobes + k];
-        if (!finite_in(l.weight, 0, 1) || !finite_in(l.kappa, 0, kMaxKappa))
-          return "vMF weight or kappa out of range (weight in [0, 1], kappa in [0, " + std::to_string(kMaxKappa) + "])";
-        if (!(std::abs(length(l.mean) - 1) < 1e-6)) return "vMF mean direction is not a unit vector";
-        weights += l.weight;
-      }
-      if (std::abs(weights - 1) > 1e-6) return "vMF weights of a bin do not sum to 1";
-    }
-    return "";
+    if (std::string why = lobes_error(m); !why.empty()) return why;
+    return draw_error(m);
   }
   const std::size_t count = std::size_t(sh_count(m.band_limit));
   if (m.band_limit < 0 || m.sh.size() != std::size_t(bins) * count) return "SH coefficients of the wrong count";
-  for (double c : m.sh)
-    if (!std::isfinite(c)) return "SH coefficient not finite";
+  for (const auto* coefficients : {&m.sh, &m.sh_chebyshev})
+    for (double c : *coefficients)
+      if (!std::isfinite(c)) return "SH coefficient not finite";
   for (float v : m.sh_table)
     if (!std::isfinite(v)) return "SH density not finite";
-  return "";
+  return draw_error(m);
 }
 
 std::int64_t StfModel::packed_bytes() const { return 32 + record_bytes(*this, 0); }

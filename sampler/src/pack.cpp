@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 
@@ -14,6 +15,7 @@ namespace {
 
 constexpr char kMagic[8] = {'S', 'T', 'F', 'P', 'A', 'C', 'K', '1'};
 constexpr std::size_t kHeaderBytes = 32;
+constexpr std::uintmax_t kMaxPackBytes = std::uintmax_t(1) << 32;  // record sizes are 32-bit
 
 std::uint64_t fnv1a(const std::uint8_t* p, std::size_t n) {
   std::uint64_t h = 0xcbf29ce484222325ull;
@@ -173,11 +175,8 @@ bool read_header(Reader& r, PackEntry& e, RecordHeader& h, std::string& error) {
   h.flags = r.get<std::uint32_t>();
   if (!r.ok) return fail(error, "truncated model record");
   if (h.kind > 1) return fail(error, "unknown model kind " + std::to_string(h.kind));
-  if (h.bins < 1 || h.bins > 100000) return fail(error, "alpha bin count out of range");
-  if (h.kind == 0 && (h.size < 1 || h.size > 64)) return fail(error, "lobe count out of range");
-  if (h.kind == 1 && (h.size > 64 || h.nz < 1 || h.nz > 256 || h.degree < -1 || h.degree > 64 ||
-                      std::size_t(h.bins) * h.nz * h.nz * 2 > (std::size_t(1) << 27)))
-    return fail(error, "SH band limit, table size or alpha degree out of range");
+  if (std::string why = model_size_error(h.kind == 1, h.bins, h.size, h.nz, h.degree); !why.empty())
+    return fail(error, why);
   if (h.flags > (kBlendWidthsFlag | kTurnsFlag | 7u)) return fail(error, "unknown model flags");
   const std::size_t per_bin = h.turns() ? 12 : 8;  // probability and tilt, and the turn
   if (std::int64_t(record) != std::int64_t(4 + 4 + pad4(name_bytes) + 6 * 4 + 8 * 8 + per_bin * std::size_t(h.bins) +
@@ -194,7 +193,7 @@ bool read_medium(Reader& r, StfModel& m, std::string& error) {
   m.uncollided_fraction = r.get<double>();
   m.once_fraction = r.get<double>();
   if (!(m.once_fraction >= 0 && m.once_fraction <= 1)) return fail(error, "once-scattered fraction out of range");
-  if (!(m.tau > 0 && finite(m.tau) && m.albedo >= 0 && m.albedo <= 1 && m.g > -1 && m.g < 1 &&
+  if (!(m.tau > 0 && m.tau <= kMaxModelTau && m.albedo >= 0 && m.albedo <= 1 && m.g > -1 && m.g < 1 &&
         m.escape_probability >= 0 && m.escape_probability <= 1 && finite(m.absorbed_fraction) &&
         finite(m.truncated_fraction)))
     return fail(error, "medium parameters out of range");
@@ -304,6 +303,7 @@ bool read_record(Reader& r, PackEntry& e, std::string& error) {
   if (!read_medium(r, m, error) || !read_alpha(r, h, m, error)) return false;
   if (!(h.kind == 0 ? read_lobes(r, h, m, error) : read_sh(r, h, m, error))) return false;
   if (!r.ok || r.at != start + h.record) return fail(error, "model record size does not match its contents");
+  if (std::string why = draw_error(m); !why.empty()) return fail(error, why);
   return true;
 }
 
@@ -340,7 +340,20 @@ bool read_pack(const std::uint8_t* data, std::size_t size, std::vector<PackEntry
   return true;
 }
 
+std::string pack_entry_error(const PackEntry& entry) {
+  const std::vector<std::uint8_t> bytes = write_pack({entry});
+  std::vector<PackEntry> back;
+  std::string error;
+  if (read_pack(bytes.data(), bytes.size(), back, error)) return "";
+  return error.rfind("model 0: ", 0) == 0 ? error.substr(9) : error;
+}
+
 bool read_pack_file(const std::string& path, std::vector<PackEntry>& entries, std::string& error) {
+  if (path.find('\0') != std::string::npos) return fail(error, "a file name holding a NUL byte");
+  std::error_code code;
+  if (!std::filesystem::is_regular_file(path, code)) return fail(error, "cannot open " + path + ": not a regular file");
+  const std::uintmax_t size = std::filesystem::file_size(path, code);
+  if (code || size > kMaxPackBytes) return fail(error, "cannot open " + path + ": larger than a pack can be (4 GiB)");
   std::ifstream in(path, std::ios::binary);
   if (!in) return fail(error, "cannot open " + path);
   std::vector<std::uint8_t> data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

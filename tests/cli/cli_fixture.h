@@ -59,6 +59,18 @@ class Cli : public ::testing::Test {
 
   std::string out(const std::string& name) const { return (dir_ / name).string(); }
 
+  // No temporary, no lock and no file whose name starts with `also` anywhere below the test
+  // folder.
+  void expect_no_litter(const std::string& what, const std::string& also = "stf-") {
+    for (const auto& e : fs::recursive_directory_iterator(dir_)) {
+      const std::string name = e.path().filename().string();
+      EXPECT_EQ(name.find(".tmp-"), std::string::npos) << what << ": " << e.path();
+      EXPECT_FALSE(name.size() > 5 && name.compare(name.size() - 5, 5, ".lock") == 0)
+          << what << ": " << e.path();
+      EXPECT_NE(name.rfind(also, 0), 0u) << what << ": " << e.path();
+    }
+  }
+
   fs::path dir_;
 };
 

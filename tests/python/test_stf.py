@@ -2,11 +2,14 @@
 
 Run by ctest with PYTHONPATH at build/python and STF_BINARY, STF_SOURCE_DIR set.
 """
+import _thread
 import math
 import os
 import subprocess
 import sys
 import tempfile
+import threading
+import time
 import unittest
 
 import h5py
@@ -17,6 +20,33 @@ import stf
 STF = os.environ["STF_BINARY"]
 SOURCE = os.environ["STF_SOURCE_DIR"]
 MEDIUM = ["--sigma-s", "2", "--sigma-a", "0.5", "--g", "0.3", "--alpha-bins", "6", "--grid", "healpix:4"]
+
+
+# Objects made by __new__ without __init__ (m, p, s), in a child python where a crash fails the
+# test alone: each expression of argv must raise stf.Error, and repr() must work.
+NEVER_CONSTRUCTED = """
+import sys
+import numpy as np
+import stf
+m, p, s = stf.Model.__new__(stf.Model), stf.Pack.__new__(stf.Pack), stf.Spheres.__new__(stf.Spheres)
+x, w, r, u = np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]), np.ones(1), np.zeros((1, 4))
+for use in sys.argv[1:]:
+    print(use, flush=True)
+    try:
+        eval(use)
+    except stf.Error:
+        continue
+    sys.exit(use + " raised no stf.Error")
+print("repr(m)", flush=True)
+print(repr(m))
+"""
+
+
+def with_value(a, index, value):
+    """A copy of array a with a[index] = value."""
+    a = a.copy()
+    a[index] = value
+    return a
 
 
 def run(*args):
@@ -211,6 +241,121 @@ class Stf(unittest.TestCase):
             self.model.sample(-1)
         with self.assertRaisesRegex(stf.Error, "no sphere of medium 'b'"):
             stf.Pack(self.path("p.stfpack")).spheres("b")
+
+    def paths(self, n=4):
+        """n paths at the origin heading +z, spheres of radius 2 about them, uniforms in [0, 1)."""
+        return (np.zeros((n, 3)), np.tile([0.0, 0.0, 1.0], (n, 1)), np.full(n, 2.0),
+                np.random.default_rng(6).random((n, 4)))
+
+    def test_uniforms_off_zero_to_one_are_refused(self):
+        self.assertTrue(issubclass(stf.Error, ValueError))
+        x, w, r, u = self.paths()
+        spheres = stf.Pack(self.path("p.stfpack")).spheres("a")
+        for bad in (np.nan, np.inf, -np.inf, -1e300, 1e300, 1.0, -1.0):
+            one = u.copy()
+            one[2, 1] = bad
+            for uniforms in (np.full((4, 4), bad), one):
+                with self.subTest(bad=bad, all=uniforms is not one):
+                    with self.assertRaisesRegex(stf.Error, "uniforms"):
+                        self.model.sample_world(x, w, r, uniforms)
+                    with self.assertRaisesRegex(stf.Error, "uniforms"):
+                        spheres.jump(x, w, np.full(4, 0.6), 5.0, uniforms)
+
+    def test_paths_off_their_domain_are_refused(self):
+        """Positions not finite, directions not unit vectors, radii not finite and > 0 (free radii:
+        finite), sigma_t not finite and > 0: for sample_world, jump and stride."""
+        x, w, r, u = self.paths()
+        free, nan, inf = np.full(4, 0.6), np.nan, np.inf
+        spheres = stf.Pack(self.path("p.stfpack")).spheres("a")
+        cases = [("positions", with_value(x, (3, 0), bad), w, r, free, 5.0) for bad in (nan, inf, -inf)]
+        cases += [("directions", x, with_value(w, 1, bad), r, free, 5.0)
+                  for bad in ([0, 0, 2.0], [0, 0, 0.0], [nan, 0, 1.0], [0.5, 0.5, 0.5])]
+        cases += [("radii", x, w, with_value(r, 3, bad), free, 5.0) for bad in (0.0, -1.0, nan, inf)]
+        cases += [("free_radii", x, w, r, with_value(free, 3, bad), 5.0) for bad in (nan, inf, -inf)]
+        cases += [("sigma_t", x, w, r, free, bad) for bad in (0.0, -1.0, nan, inf)]
+        for i, (what, xs, ws, rs, fs, sigma_t) in enumerate(cases):
+            with self.subTest(i=i, what=what):
+                if what not in ("free_radii", "sigma_t"):
+                    with self.assertRaisesRegex(stf.Error, what):
+                        self.model.sample_world(xs, ws, rs, u)
+                if what != "radii":
+                    with self.assertRaisesRegex(stf.Error, what):
+                        spheres.jump(xs, ws, fs, sigma_t, u)
+                    with self.assertRaisesRegex(stf.Error, what):
+                        spheres.stride(xs, ws, fs, sigma_t, seed=1)
+
+    def test_inputs_at_the_edges_of_their_domains_still_draw(self):
+        x, w, r, u = self.paths()
+        u[0], u[1], u[2] = 0.0, -0.0, np.nextafter(1.0, 0.0)
+        w[3] = np.array([1.0, 2.0, 3.0]) / math.sqrt(14)
+        e = self.model.sample_world(x, w, r, u)
+        self.assertTrue(np.allclose(np.linalg.norm(e["exit_point"] - x, axis=1), 2.0))
+        # A free radius of 0, or just below as rounding leaves it on a sphere's surface, fits no sphere.
+        j = stf.Pack(self.path("p.stfpack")).spheres("a").jump(x, w, np.array([0.0, -1e-15, 0.6, 0.6]), 5.0, u)
+        self.assertEqual(list(j["sphere"]), [-1, -1, 0, 0])
+
+    def test_objects_never_constructed_raise_stf_error(self):
+        """stf.Model.__new__(stf.Model) and the like, without __init__: not a crash."""
+        uses = {"Model": ["m.sample(3)", "m.tau", "m.escape_probability", "m.family", "m.alpha_edges",
+                          "m.pdf(x, w)", "m.sample_world(x, w, r, u)"],
+                "Pack": ["len(p)", "p.find(tau=1, albedo=0.8, g=0.3)", "p[0]", "p.spheres('a')"],
+                "Spheres": ["len(s)", "s.jump(x, w, r, 1.0, u)", "s.stride(x, w, r, 1.0, seed=1)"]}
+        for kind, exprs in uses.items():
+            with self.subTest(kind):
+                child = subprocess.run([sys.executable, "-c", NEVER_CONSTRUCTED, *exprs], capture_output=True,
+                                       text=True, timeout=60)
+                self.assertEqual(child.returncode, 0, child.stdout + child.stderr)
+                self.assertIn("stf.Model", child.stdout.splitlines()[-1])
+
+    def test_what_is_no_model_or_pack_raises_stf_error(self):
+        os.makedirs(self.path("folder"), exist_ok=True)
+        for make, path in ((stf.Pack, self.path("folder")), (stf.Model, self.path("folder")),
+                           (stf.Pack, "/dev/zero"), (stf.Model, "/dev/zero"),  # not read forever
+                           (stf.Pack, "/nonexistent"), (stf.Model, "/nonexistent"),
+                           (stf.Model, self.path("t.h5")), (stf.Pack, self.path("t.h5"))):
+            with self.subTest(make=make.__name__, path=path):
+                with self.assertRaises(stf.Error):
+                    make(path)
+
+    def test_file_names_with_a_nul_are_refused(self):
+        for make, name in ((stf.Model, "m.h5"), (stf.Pack, "p.stfpack")):
+            with self.subTest(name):
+                with self.assertRaisesRegex(stf.Error, "NUL"):
+                    make(self.path(name) + "\x00junk")
+
+    def test_long_draws_stop_at_ctrl_c(self):
+        """One thread draws 2^23 exits in 8 rounds of 2^20 and looks for a Ctrl-C after each."""
+        start = time.perf_counter()
+        self.model.sample(2**20, threads=1)
+        whole = 8 * (time.perf_counter() - start)
+        timer = threading.Timer(0.2, _thread.interrupt_main)
+        start = time.perf_counter()
+        timer.start()
+        try:
+            with self.assertRaises(KeyboardInterrupt):
+                self.model.sample(2**23, threads=1)
+        finally:
+            timer.cancel()
+        self.assertLess(time.perf_counter() - start, 0.2 + whole / 2)
+        self.assertEqual(self.model.sample(3)["pdf"].shape, (3,))
+
+    def test_corrupted_models_are_refused_by_their_checksum(self):
+        """stf writes the xxh3 of what follows the 512-byte user block into it: a flipped byte
+        after the block (or a byte too many or too few) is refused; with the block cleared the
+        file is one stf did not write, and loads."""
+        with open(self.path("m.h5"), "rb") as f:
+            good = f.read()
+        self.assertTrue(good.startswith(b"stf-checksum xxh3-64 "))
+        flipped = [good[:k] + bytes([good[k] ^ 1]) + good[k + 1:] for k in (512, 513, len(good) // 2, len(good) - 1)]
+        for i, bad in enumerate([*flipped, good[:-1], good + b"\0"]):
+            with self.subTest(i):
+                with open(self.path("c.h5"), "wb") as f:
+                    f.write(bad)
+                with self.assertRaisesRegex(stf.Error, "checksum"):
+                    stf.Model(self.path("c.h5"))
+        with open(self.path("c.h5"), "wb") as f:
+            f.write(bytes(512) + good[512:])
+        self.assertEqual(stf.Model(self.path("c.h5")).tau, self.model.tau)
 
     def test_the_python_integrator_agrees_with_stf_render(self):
         """examples/python_render.py strides through the same pack as `stf render --pack`: the

@@ -186,3 +186,51 @@ TEST(Pack, RejectsForeignTruncatedAndCorruptedFiles) {
 
 }  // namespace
 }  // namespace stf
+
+namespace stf {
+namespace {
+
+// Packs whose parts cannot be drawn from are refused at load, with their checksum right (the
+// writer does not check; the reader must): nothing to draw, a once-scattered part at a tau where
+// its draw never accepts.
+TEST(Pack, PartsThatCannotBeDrawnFromAreRefusedAtLoad) {
+  auto refused = [](const StfModel& m, const std::string& words) {
+    const std::vector<std::uint8_t> bytes = write_pack({PackEntry{"", m}});
+    std::vector<PackEntry> out;
+    std::string error;
+    EXPECT_FALSE(read_pack(bytes.data(), bytes.size(), out, error)) << words;
+    EXPECT_NE(error.find(words), std::string::npos) << error;
+    EXPECT_EQ(pack_entry_error({"", m}).find(words) != std::string::npos, true) << words;
+  };
+  StfModel nothing = test::make_vmf_model();
+  nothing.alpha_probability.assign(nothing.alpha_probability.size(), 0.0);
+  nothing.once_fraction = 0;
+  refused(nothing, "nothing to draw");
+  StfModel far = test::make_vmf_model();
+  far.tau = 1e12, far.once_fraction = 0.2;
+  refused(far, "medium parameters out of range");
+  far.tau = 5000;
+  refused(far, "once-scattered part");
+  EXPECT_EQ(pack_entry_error({"", test::make_vmf_model()}), "");
+}
+
+// A model's sizes are held to the same limits by the model checks, the pack writer's check and
+// the pack reader: an SH table of more rows than a pack holds is refused by all.
+TEST(Pack, ModelSizesHaveOneSetOfLimits) {
+  StfModel m = test::make_sh_model();
+  EXPECT_EQ(model_error(m), "");
+  m.sh_nz = kMaxShNz + 1;
+  EXPECT_NE(model_error(m), "");
+  EXPECT_NE(model_size_error(true, m.bins(), m.band_limit, m.sh_nz, m.alpha_degree), "");
+  EXPECT_NE(pack_entry_error({"", m}), "");
+  EXPECT_EQ(model_size_error(true, m.bins(), m.band_limit, kMaxShNz, m.alpha_degree), "");
+  EXPECT_NE(model_size_error(false, m.bins(), kMaxLobes + 1, 1, -1), "");
+  StfModel nan_series = test::make_sh_model();
+  nan_series.alpha_degree = 1;
+  nan_series.sh_chebyshev.assign(2 * nan_series.sh.size() / std::size_t(nan_series.bins()), 0.0);
+  nan_series.sh_chebyshev[3] = std::nan("");
+  EXPECT_NE(model_error(nan_series).find("not finite"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace stf

@@ -131,8 +131,29 @@ struct StfModel {
 // how many (at most 2 width + 1; width 0: bin b alone).
 int blend_hats(int b, double u, int width, int bins, int* blend_bins, double* weights);
 
-// Why `m` is not a usable model (values out of range or not finite, inconsistent sizes), or
-// empty when it is. Loaders check once, so sampling code can trust what it is given.
+// The limits every reader and writer of models holds to (model files, packs, `stf pack`):
+// what the pack format and the sampler's tables hold.
+inline constexpr int kMaxModelBins = 100000, kMaxLobes = 64, kMaxBandLimit = 64, kMaxShNz = 256;
+inline constexpr int kMaxAlphaDegree = 64;
+inline constexpr double kMaxShTableCells = 0x1p27;  // bins * sh_nz * 2 sh_nz floats: 512 MiB
+inline constexpr double kMaxModelTau = 1e7;         // the largest table stf precomputes
+// The once-scattered part is at most tau e^-tau of the paths, nothing in float64 beyond tau
+// ~745, and its draw's bound is built for tau up to ~1000: a model that claims one above this
+// tau cannot be drawn from.
+inline constexpr double kMaxOnceTau = 1000;
+
+// Why a model of these sizes exceeds the limits (sh: band limit `size`, table rows `nz` and
+// alpha degree `degree`; vMF: `size` lobes), or "" when it does not.
+std::string model_size_error(bool sh, double bins, double size, double nz, double degree);
+
+// Why a part of `m` cannot be drawn from in a bounded time (alpha probabilities all 0, a
+// once-scattered part above kMaxOnceTau), or "". (A hemispherical lobe of almost no outward
+// mass is dropped by rebuild_lobe_norms(), so its draw needs no check.)
+std::string draw_error(const StfModel& m);
+
+// Why `m` is not a usable model (values out of range or not finite, inconsistent sizes, parts
+// that cannot be drawn from), or empty when it is. Loaders check once, so sampling code can
+// trust what it is given.
 std::string model_error(const StfModel& m);
 
 // Cell of the equal-area (z, phi) grid with nz rows in z and 2 nz columns in phi.

@@ -42,6 +42,10 @@ struct PackEntry {
 // Serialises entries (models must have linear alpha bins on [0, pi]).
 std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries);
 
+// Why read_pack would refuse a pack holding `entry` (it is written and read back: the pack
+// reader's own rules), or "" when it would not. Writers check before they write.
+std::string pack_entry_error(const PackEntry& entry);
+
 // Parses a pack; on failure returns false and sets `error` (one line).
 bool read_pack(const std::uint8_t* data, std::size_t size, std::vector<PackEntry>& entries, std::string& error);
 bool read_pack_file(const std::string& path, std::vector<PackEntry>& entries, std::string& error);
