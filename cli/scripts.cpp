@@ -19,9 +19,10 @@ namespace stf::cli {
 
 namespace {
 
-// A script's stderr, passed on line by line until a Python traceback starts; from there it is
-// held back: if the script fails, only its last line (the exception) makes the one-line error;
-// if it succeeds after all, the held lines are passed on too.
+// A script's stderr, passed on line by line until a Python traceback or an error of the stf it
+// runs starts; from there it is held back: if the script fails, one line makes the error (the
+// first stf error, which says what went wrong, else the exception); if it succeeds after all,
+// the held lines are passed on too.
 class ScriptErrors {
  public:
   void take(const char* bytes, std::size_t n) {
@@ -30,6 +31,10 @@ class ScriptErrors {
          pending_.erase(0, end + 1)) {
       const std::string line = pending_.substr(0, end);
       if (line.rfind("Traceback (most recent call last)", 0) == 0) holding_ = true;
+      if (line.rfind(kStfError, 0) == 0) {
+        holding_ = true;
+        if (stf_error_.empty()) stf_error_ = line.substr(std::string(kStfError).size());
+      }
       if (holding_)
         held_ += line + "\n";
       else
@@ -37,11 +42,12 @@ class ScriptErrors {
       if (!line.empty()) last_ = line;
     }
   }
-  std::string last() const { return pending_.empty() ? last_ : pending_; }
+  std::string cause() const { return !stf_error_.empty() ? stf_error_ : pending_.empty() ? last_ : pending_; }
   void pass_on_the_rest() const { std::fprintf(stderr, "%s%s", held_.c_str(), pending_.c_str()); }
 
  private:
-  std::string pending_, last_, held_;
+  static constexpr const char* kStfError = "stf: error: ";
+  std::string pending_, last_, held_, stf_error_;
   bool holding_ = false;
 };
 
@@ -104,7 +110,7 @@ void run_python(const std::string& script, const std::vector<std::string>& args,
                               ? " exited with status " + std::to_string(WEXITSTATUS(status))
                               : " was killed";
   fail(what + " failed (" + script + why + ")" +
-       (errors.last().empty() ? "" : ": " + errors.last()));
+       (errors.cause().empty() ? "" : ": " + errors.cause()));
 }
 
 ProgressBar::ProgressBar(std::string label, bool quiet)

@@ -159,6 +159,11 @@ TEST_F(Fault, FullDiskLeavesEveryOldOutputAsItWas) {
       EXPECT_EQ(bytes_of(path), bytes) << what << " changed " << path;
     expect_no_litter(what);
   }
+  // A report's script runs stf, which meets the limit: its one line is the report's one line.
+  Result report = run_child({"report", "--medium", "a:4:0.5:0.3", "-o", out("rep")}, 4096);
+  expect_one_line(report, "File too large", "report over a 4 KiB limit");
+  EXPECT_FALSE(fs::exists(out("rep")));
+  expect_no_litter("report over a 4 KiB limit");
   // A file too large for the limit but not the first write: the same.
   Result part = run_child({"sample", out("m.h5"), "--count", "1e5", "-o", out("s.h5")}, 64 * 1024);
   expect_one_line(part, "s.h5", "sample of 1e5 over a 64 KiB limit");

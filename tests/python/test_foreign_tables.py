@@ -207,6 +207,41 @@ class ForeignTables(unittest.TestCase):
             self.assertIn(words, err, name)
             self.assertEqual(err.count("\n"), 1, err)
 
+    def refused(self, words, *args):
+        """stf refuses `args` in one line holding every one of `words`."""
+        status, err = stf(*args)
+        self.assertEqual(status, 2, err)
+        self.assertEqual(err.count("\n"), 1, err)
+        for w in words:
+            self.assertIn(w, err)
+
+    def test_what_a_command_would_fail_on_late_is_refused_first(self):
+        """A smooth whose output could not hold the input's attributes fails before it fits; a
+        samples file claiming more points than memory holds is refused before it is read; a
+        report is a folder, not standard output."""
+        counts = np.random.default_rng(SEED).poisson(3.0, (self.bins, self.cells)).astype(float)
+        with h5py.File(self.path("big_attr.h5"), "w", libver="latest") as f:  # dense attribute storage
+            f["escape/weight"], f["escape/alpha_edges"] = counts, self.edges
+            f["grid/direction"], f["grid/solid_angle"] = self.direction, self.solid_angle
+            f.attrs["notes"] = np.zeros(20000)  # 160 KB: more than a compact attribute holds
+        self.refused(["big_attr.h5", "notes"], "smooth", self.path("big_attr.h5"), "--model", "vmf:1",
+                     "-o", self.path("s.h5"))
+        self.assertFalse(os.path.exists(self.path("s.h5")))
+        check("fit", self.path("layout.h5"), "--model", "vmf:1", "--quiet", "-o", self.path("m.h5"))
+        with h5py.File(self.path("huge.h5"), "w") as f:
+            for name in ("exit_point", "exit_direction"):  # 24 TB as declared, nothing stored
+                f.create_dataset("samples/" + name, shape=(10**12, 3), dtype="f8", chunks=(1024, 3))
+        self.refused(["huge.h5", "exit_point", "memory"], "sample", self.path("m.h5"), "--eval",
+                     self.path("huge.h5"), "-o", self.path("e.h5"))
+        self.refused(["a report is a folder"], "report", self.path("m.h5"), "-o", "-")
+
+    def test_npy_headers_are_quoted_printably(self):
+        header = b"{'descr': '<f\x008', 'fortran_order': False, 'shape': (8, 768), }"
+        header += b" " * (64 - (10 + len(header) + 1) % 64) + b"\n"
+        write_bytes(self.path("nul.npy"), b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header)
+        self.refused(["nul.npy", "\\x00"], "import", self.path("nul.npy"), "--grid", "healpix:8", "--alpha-bins",
+                     self.bins, "-o", self.path("x.h5"))
+
 
 if __name__ == "__main__":
     unittest.main()
