@@ -76,15 +76,6 @@ std::string grid_mismatch(const std::string& spec, const std::vector<std::array<
   return "";
 }
 
-void put_medium(H5::H5File& file, const Medium& m) {
-  h5::put_attr(file, "sigma_s", m.sigma_s);
-  h5::put_attr(file, "sigma_a", m.sigma_a);
-  h5::put_attr(file, "g", m.g);
-  h5::put_attr(file, "radius", m.radius);
-  h5::put_attr(file, "tau", m.tau());
-  h5::put_attr(file, "albedo", m.albedo());
-}
-
 std::string minimal_table_file(const Table& layout, const std::vector<double>& weight,
                                const std::function<void(H5::H5File&)>& attributes, const char* name) {
   try {

@@ -47,7 +47,5 @@ std::string grid_mismatch(const std::string& spec, const std::vector<std::array<
 std::string minimal_table_file(const Table& layout, const std::vector<double>& weight,
                                const std::function<void(H5::H5File&)>& attributes, const char* name = "weight");
 
-// The medium's root attributes as stf's tables carry them.
-void put_medium(H5::H5File& file, const Medium& medium);
 
 }  // namespace stf

@@ -7,7 +7,6 @@
 
 #include "files.h"
 #include "h5io.h"
-#include "minimal_table.h"
 #include "stf/vec3.h"
 
 namespace stf {
@@ -65,6 +64,15 @@ std::map<std::uint64_t, double> get_sparse_halves(const H5::H5File& file, const 
   });
   if (any) keep_row();
   return values;
+}
+
+void put_medium(H5::H5File& file, const Medium& m) {
+  h5::put_attr(file, "sigma_s", m.sigma_s);
+  h5::put_attr(file, "sigma_a", m.sigma_a);
+  h5::put_attr(file, "g", m.g);
+  h5::put_attr(file, "radius", m.radius);
+  h5::put_attr(file, "tau", m.tau());
+  h5::put_attr(file, "albedo", m.albedo());
 }
 
 std::string table_file(const Table& t) {

@@ -103,6 +103,9 @@ inline constexpr double kMaxTotalWeight = 0x1p62;
 inline constexpr const char* kTableFormat = "stf-table";
 inline constexpr int kTableFormatVersion = 1;
 
+// The medium's root attributes as stf's tables carry them.
+void put_medium(H5::H5File& file, const Medium& medium);
+
 // The table as the bytes of its HDF5 file.
 std::string table_file(const Table& table);
 // Replaces `path` by the table's file (replace_file: an old file survives any failure).

@@ -2,11 +2,16 @@
 
 #include <cmath>
 
-#include "evaluate.h"
 #include "stf/quadrature.h"
 #include "stf/tilt.h"
 
 namespace stf::fit {
+
+double area_share(const Table& reference, int b, int f) {
+  auto area = [&](int lo, int hi) { return std::cos(reference.alpha_edges[lo]) - std::cos(reference.alpha_edges[hi]); };
+  const int j = b / f;
+  return area(b, b + 1) / area(j * f, (j + 1) * f);
+}
 
 double tilt_from_counts(const std::vector<double>& edges, const std::vector<double>& counts) {
   double total = 0;

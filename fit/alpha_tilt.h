@@ -13,6 +13,11 @@
 
 namespace stf::fit {
 
+// The share of bin b of `reference` in the probability of the group of f bins holding it (b /
+// f): its area on the unit sphere, since a sampler spreads alpha uniformly in cos(alpha) within
+// a bin.
+double area_share(const Table& reference, int b, int f);
+
 // The tilt maximising sum_k counts[k] log tilt_mass(tilt, edges[k], edges[k + 1]), edges
 // increasing in [0, 1]; 0 when there are no counts, clamped to +-kMaxTilt.
 double tilt_from_counts(const std::vector<double>& edges, const std::vector<double>& counts);

@@ -80,12 +80,6 @@ int alpha_group_size(const std::vector<double>& edges, const Table& reference) {
   return f;
 }
 
-double area_share(const Table& reference, int b, int f) {
-  auto area = [&](int lo, int hi) { return std::cos(reference.alpha_edges[lo]) - std::cos(reference.alpha_edges[hi]); };
-  const int j = b / f;
-  return area(b, b + 1) / area(j * f, (j + 1) * f);
-}
-
 std::vector<double> smooth_cell_probabilities(const StfModel& m, int b, const QuadratureLevels& levels, double turn) {
   if (m.kind == ModelKind::kVmf) {
     std::vector<VmfLobe> lobes(m.vmf.begin() + std::ptrdiff_t(b) * m.lobes, m.vmf.begin() + std::ptrdiff_t(b + 1) * m.lobes);

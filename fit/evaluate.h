@@ -35,9 +35,6 @@ struct Evaluation {
 // Alpha bins given by `edges` must be the reference's or groups of f consecutive ones;
 // returns f. Throws std::invalid_argument otherwise.
 int alpha_group_size(const std::vector<double>& edges, const Table& reference);
-// The share of reference bin b in the probability of the group holding it (b / f): its area
-// on the unit sphere, since a sampler spreads alpha uniformly in cos(alpha) within a bin.
-double area_share(const Table& reference, int b, int f);
 
 // Per-cell probabilities of the fitted density of alpha bin b, integrated over the cells of the
 // grid whose quadratures `levels` holds (build them once for all bins); they sum to 1.

@@ -7,7 +7,7 @@
 
 #include <string>
 
-#include "fit_table.h"
+#include "fit_settings.h"
 #include "table.h"
 
 namespace stf::fit {

@@ -19,7 +19,8 @@
 #include "alpha_marginal.h"
 #include "alpha_tilt.h"
 #include "cell_integral.h"
-#include "fit_table.h"
+#include "fit_settings.h"
+#include "table.h"
 #include "grid.h"
 #include "mirror.h"
 #include "parallel.h"
@@ -27,6 +28,31 @@
 #include "stf/once_scattered.h"
 #include "stf/sh.h"
 #include "vmf_fit.h"
+
+namespace stf::fit {
+
+// A triangle in the distance d (bins): the nearest neighbours of width 1 count 1/2.
+inline constexpr double pool_weight(int width, int d) { return 1 - d / double(width + 1); }
+
+// The bins' headings (mean exit directions' angles about y, per alpha bin) smoothed across
+// alpha for sloped pools: a sparse bin's heading scatters by degrees (a few hundred escapes
+// spread over tens of degrees), the true one turns smoothly with the exit point. Each becomes
+// the value at its bin of a local quadratic in the bin index over the bins within
+// kConfig.heading_window, least squares weighted by their escapes and a triangle in the distance;
+// headings are unwrapped first, as they may cross +-pi. Bins whose window holds fewer than three
+// bins with escapes keep their own. `slopes`, when given, receives each local quadratic's slope at
+// its bin, per bin (0 where a bin keeps its own heading).
+std::vector<double> smooth_headings(std::vector<double> headings, const std::vector<double>& escapes,
+                                    std::vector<double>* slopes = nullptr);
+
+// The rate at which each bin's direction density turns about y with the exit angle
+// (StfModel::alpha_turn), in radians per radian of alpha: the slope at the bin of its smoothed
+// heading (smooth_headings of the bins' headings and escapes after two or more collisions),
+// clamped to +-kConfig.max_fitted_turn; 0 where the slope is not known.
+std::vector<double> alpha_turns(const std::vector<double>& headings, const std::vector<double>& escapes,
+                                const std::vector<double>& alpha_edges);
+
+}  // namespace stf::fit
 
 namespace stf::fit::stages {
 

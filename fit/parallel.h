@@ -7,7 +7,7 @@
 #include <thread>
 #include <vector>
 
-#include "fit_table.h"
+#include "fit_settings.h"
 
 namespace stf::fit {
 

@@ -2,7 +2,7 @@
 #include <algorithm>
 #include <stdexcept>
 
-#include "fit_table.h"
+#include "fit_settings.h"
 
 namespace stf::fit {
 

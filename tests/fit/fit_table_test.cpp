@@ -1,5 +1,6 @@
 // Whole tables: stiff media, determinism, storage, evaluation.
 #include "forget_checksum.h"
+#include "fit_stages.h"
 #include "fit_table.h"
 #include "sh_fit.h"
 
