@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "geometry.h"
-#include "rng.h"
+#include "stf/core/geometry.h"
+#include "stf/core/rng.h"
 
 namespace stf::bench {
 

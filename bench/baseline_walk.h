@@ -5,7 +5,7 @@
 
 #include <cstdint>
 
-#include "walk.h"
+#include "stf/precompute/walk.h"
 
 namespace stf::bench {
 

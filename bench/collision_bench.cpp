@@ -13,8 +13,8 @@
 #include <stf/math.h>
 
 #include "stf/hg.h"
-#include "pixel_rng.h"
-#include "render.h"
+#include "stf/render/pixel_rng.h"
+#include "stf/render/render.h"
 
 namespace {
 

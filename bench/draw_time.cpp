@@ -6,7 +6,7 @@
 #include <cstdlib>
 #include <vector>
 
-#include "model_io.h"
+#include "stf/fit/model_io.h"
 #include "stf/sampler.h"
 
 int main(int argc, char** argv) {

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "exp_in_place.h"
+#include "stf/fit/exp_in_place.h"
 
 namespace {
 

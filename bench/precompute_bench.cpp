@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "baseline_walk.h"
-#include "precompute.h"
+#include "stf/precompute/precompute.h"
 
 namespace {
 

@@ -12,7 +12,7 @@
 #include <map>
 #include <sstream>
 
-#include "rng.h"
+#include "stf/core/rng.h"
 #include "stf/sampler.h"
 #include "stf/sh.h"
 #include "stf/vmf.h"

@@ -23,9 +23,9 @@
 #include <string>
 #include <vector>
 
-#include "pixel_rng.h"
-#include "render_scene.h"
-#include "tracer.h"
+#include "stf/render/pixel_rng.h"
+#include "stf/render/render_scene.h"
+#include "stf/render/tracer.h"
 
 namespace {
 

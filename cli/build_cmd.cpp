@@ -5,11 +5,11 @@
 #include <memory>
 #include <optional>
 
-#include "build.h"
+#include "stf/scene/build.h"
 #include "cli.h"
 #include "mpi.h"
-#include "plan.h"
-#include "scene.h"
+#include "stf/scene/plan.h"
+#include "stf/scene/scene.h"
 
 namespace stf::cli {
 

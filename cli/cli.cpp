@@ -18,9 +18,9 @@
 #include <sstream>
 #include <toml.hpp>
 
-#include "files.h"
-#include "h5io.h"
-#include "table.h"
+#include "stf/core/files.h"
+#include "stf/core/h5io.h"
+#include "stf/core/table.h"
 
 namespace stf::cli {
 

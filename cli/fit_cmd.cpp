@@ -9,14 +9,14 @@
 #include <sstream>
 
 #include "cli.h"
-#include "evaluate.h"
-#include "expected_singular.h"
-#include "fit_table.h"
-#include "h5io.h"
-#include "minimal_table.h"
-#include "model_io.h"
+#include "stf/fit/evaluate.h"
+#include "stf/fit/expected_singular.h"
+#include "stf/fit/fit_table.h"
+#include "stf/core/h5io.h"
+#include "stf/core/minimal_table.h"
+#include "stf/fit/model_io.h"
 #include "stf/pack.h"
-#include "tolerance.h"
+#include "stf/fit/tolerance.h"
 
 namespace stf::cli {
 

@@ -9,7 +9,7 @@
 
 #include "cli.h"
 
-#include "table.h"
+#include "stf/core/table.h"
 
 namespace stf::cli {
 

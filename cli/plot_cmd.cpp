@@ -8,12 +8,12 @@
 #include <memory>
 
 #include "cli.h"
-#include "files.h"
-#include "grid.h"
-#include "h5io.h"
-#include "evaluate.h"
-#include "model_io.h"
-#include "table.h"
+#include "stf/core/files.h"
+#include "stf/core/grid.h"
+#include "stf/core/h5io.h"
+#include "stf/fit/evaluate.h"
+#include "stf/fit/model_io.h"
+#include "stf/core/table.h"
 
 namespace stf::cli {
 

@@ -12,11 +12,11 @@
 #include <thread>
 
 #include "cli.h"
-#include "files.h"
+#include "stf/core/files.h"
 #include "mpi.h"
-#include "parts.h"
-#include "precompute.h"
-#include "walk.h"
+#include "stf/precompute/parts.h"
+#include "stf/precompute/precompute.h"
+#include "stf/precompute/walk.h"
 
 namespace stf::cli {
 

@@ -10,15 +10,15 @@
 #include <memory>
 #include <optional>
 
-#include "build.h"
+#include "stf/scene/build.h"
 #include "cli.h"
-#include "h5io.h"
-#include "plan.h"
-#include "png.h"
-#include "precompute.h"
-#include "render.h"
-#include "render_scene.h"
-#include "clock.h"
+#include "stf/core/h5io.h"
+#include "stf/scene/plan.h"
+#include "stf/render/png.h"
+#include "stf/precompute/precompute.h"
+#include "stf/render/render.h"
+#include "stf/render/render_scene.h"
+#include "stf/core/clock.h"
 
 namespace stf::cli {
 

@@ -16,10 +16,10 @@
 #include <sys/stat.h>
 
 #include "cli.h"
-#include "files.h"
-#include "precompute.h"
+#include "stf/core/files.h"
+#include "stf/precompute/precompute.h"
 #include "stf/pack.h"
-#include "stress.h"
+#include "stf/scene/stress.h"
 
 namespace stf::cli {
 

@@ -6,8 +6,8 @@
 #include <memory>
 
 #include "cli.h"
-#include "h5io.h"
-#include "model_io.h"
+#include "stf/core/h5io.h"
+#include "stf/fit/model_io.h"
 #include "stf/pack.h"
 #include "stf/sampler.h"
 

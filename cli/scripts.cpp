@@ -11,7 +11,7 @@
 #include <cstring>
 
 #include "cli.h"
-#include "clock.h"
+#include "stf/core/clock.h"
 
 extern char** environ;
 

@@ -6,13 +6,13 @@
 #include <memory>
 
 #include "cli.h"
-#include "evaluate.h"
-#include "expected_singular.h"
-#include "fit_table.h"
-#include "h5io.h"
-#include "import.h"
-#include "minimal_table.h"
-#include "precompute.h"
+#include "stf/fit/evaluate.h"
+#include "stf/fit/expected_singular.h"
+#include "stf/fit/fit_table.h"
+#include "stf/core/h5io.h"
+#include "stf/core/import.h"
+#include "stf/core/minimal_table.h"
+#include "stf/precompute/precompute.h"
 
 namespace stf::cli {
 

@@ -1,4 +1,4 @@
-#include "files.h"
+#include "stf/core/files.h"
 
 #include <fcntl.h>
 #include <signal.h>

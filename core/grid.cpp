@@ -1,6 +1,6 @@
-#include "grid.h"
+#include "stf/core/grid.h"
 
-#include "fastmath.h"
+#include "stf/core/fastmath.h"
 
 #include <healpix_base.h>
 #include <wcslib/prj.h>

@@ -13,7 +13,7 @@
 #include <memory>
 #include <stdexcept>
 
-#include "h5io.h"
+#include "stf/core/h5io.h"
 
 namespace stf::h5 {
 

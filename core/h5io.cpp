@@ -1,4 +1,4 @@
-#include "h5io.h"
+#include "stf/core/h5io.h"
 
 #include <algorithm>
 #include <atomic>

@@ -6,7 +6,7 @@
 #include <cstring>
 #include <stdexcept>
 
-#include "h5io.h"
+#include "stf/core/h5io.h"
 
 namespace stf::h5 {
 

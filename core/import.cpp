@@ -1,4 +1,4 @@
-#include "import.h"
+#include "stf/core/import.h"
 
 #include <algorithm>
 #include <cerrno>

@@ -1,4 +1,4 @@
-#include "minimal_table.h"
+#include "stf/core/minimal_table.h"
 
 #include <H5Cpp.h>
 
@@ -6,9 +6,9 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "grid.h"
-#include "h5io.h"
-#include "rng.h"
+#include "stf/core/grid.h"
+#include "stf/core/h5io.h"
+#include "stf/core/rng.h"
 
 namespace stf {
 

@@ -1,12 +1,12 @@
-#include "table.h"
+#include "stf/core/table.h"
 
 #include <H5Cpp.h>
 
 #include <cmath>
 #include <stdexcept>
 
-#include "files.h"
-#include "h5io.h"
+#include "stf/core/files.h"
+#include "stf/core/h5io.h"
 #include "stf/vec3.h"
 
 namespace stf {

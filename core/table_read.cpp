@@ -1,6 +1,6 @@
 // Reading a table: stf's own, or any file with the four datasets (docs/formats.md, "Tables stf
 // did not make"); what a file lacks is filled in, and the result is checked by table_error.
-#include "table.h"
+#include "stf/core/table.h"
 
 #include <H5Cpp.h>
 
@@ -8,9 +8,9 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "grid.h"
-#include "h5io.h"
-#include "minimal_table.h"
+#include "stf/core/grid.h"
+#include "stf/core/h5io.h"
+#include "stf/core/minimal_table.h"
 
 namespace stf {
 

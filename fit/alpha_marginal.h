@@ -6,7 +6,7 @@
 
 #include <vector>
 
-#include "table.h"
+#include "stf/core/table.h"
 
 namespace stf::fit {
 

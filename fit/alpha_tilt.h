@@ -9,7 +9,7 @@
 
 #include "stf/model.h"
 
-#include "table.h"
+#include "stf/core/table.h"
 
 namespace stf::fit {
 

@@ -1,10 +1,10 @@
-#include "cell_integral.h"
+#include "stf/fit/cell_integral.h"
 
 #include <algorithm>
 #include <cmath>
 #include <tuple>
 
-#include "exp_in_place.h"
+#include "stf/fit/exp_in_place.h"
 #include "stf/tilt.h"
 
 namespace stf::fit {

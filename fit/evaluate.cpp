@@ -1,4 +1,4 @@
-#include "evaluate.h"
+#include "stf/fit/evaluate.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,8 +8,8 @@
 #include <stdexcept>
 
 #include "alpha_tilt.h"
-#include "cell_integral.h"
-#include "grid.h"
+#include "stf/fit/cell_integral.h"
+#include "stf/core/grid.h"
 #include "stf/tilt.h"
 
 namespace stf::fit {

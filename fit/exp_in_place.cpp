@@ -1,4 +1,4 @@
-#include "exp_in_place.h"
+#include "stf/fit/exp_in_place.h"
 
 #include <cmath>
 

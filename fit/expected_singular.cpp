@@ -1,10 +1,10 @@
-#include "expected_singular.h"
+#include "stf/fit/expected_singular.h"
 
 #include <algorithm>
 #include <cmath>
 
 #include "fit_stages.h"
-#include "once_scattered_cells.h"
+#include "stf/fit/once_scattered_cells.h"
 
 namespace stf::fit {
 

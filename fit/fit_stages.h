@@ -18,16 +18,16 @@
 
 #include "alpha_marginal.h"
 #include "alpha_tilt.h"
-#include "cell_integral.h"
-#include "fit_settings.h"
-#include "table.h"
-#include "grid.h"
+#include "stf/fit/cell_integral.h"
+#include "stf/fit/fit_settings.h"
+#include "stf/core/table.h"
+#include "stf/core/grid.h"
 #include "mirror.h"
 #include "parallel.h"
 #include "sh_fit.h"
 #include "stf/once_scattered.h"
 #include "stf/sh.h"
-#include "vmf_fit.h"
+#include "stf/fit/vmf_fit.h"
 
 namespace stf::fit {
 

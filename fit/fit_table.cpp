@@ -1,12 +1,12 @@
 // fit_table(): the pipeline, stage by stage. What each stage takes, returns and chooses is in
 // fit_stages.h; docs/fit.md gives their order and selection rules.
-#include "fit_table.h"
+#include "stf/fit/fit_table.h"
 
 #include <chrono>
 
-#include "expected_singular.h"
+#include "stf/fit/expected_singular.h"
 #include "fit_stages.h"
-#include "clock.h"
+#include "stf/core/clock.h"
 
 namespace stf::fit {
 

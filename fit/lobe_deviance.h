@@ -8,7 +8,7 @@
 #include <memory>
 #include <vector>
 
-#include "cell_integral.h"
+#include "stf/fit/cell_integral.h"
 
 namespace stf::fit {
 

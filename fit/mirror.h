@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "grid.h"
+#include "stf/core/grid.h"
 
 namespace stf::fit {
 

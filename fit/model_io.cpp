@@ -1,4 +1,4 @@
-#include "model_io.h"
+#include "stf/fit/model_io.h"
 
 #include <H5Cpp.h>
 
@@ -8,8 +8,8 @@
 #include <fstream>
 #include <stdexcept>
 
-#include "files.h"
-#include "h5io.h"
+#include "stf/core/files.h"
+#include "stf/core/h5io.h"
 #include "stf/pack.h"
 #include "stf/sh.h"
 

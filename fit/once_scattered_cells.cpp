@@ -1,4 +1,4 @@
-#include "once_scattered_cells.h"
+#include "stf/fit/once_scattered_cells.h"
 
 #include <algorithm>
 #include <cmath>

@@ -7,7 +7,7 @@
 #include <thread>
 #include <vector>
 
-#include "fit_settings.h"
+#include "stf/fit/fit_settings.h"
 
 namespace stf::fit {
 

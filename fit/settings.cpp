@@ -2,7 +2,7 @@
 #include <algorithm>
 #include <stdexcept>
 
-#include "fit_settings.h"
+#include "stf/fit/fit_settings.h"
 
 namespace stf::fit {
 

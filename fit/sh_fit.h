@@ -4,7 +4,7 @@
 #include <memory>
 #include <vector>
 
-#include "grid.h"
+#include "stf/core/grid.h"
 #include "stf/model.h"
 
 namespace stf::fit {

@@ -1,4 +1,4 @@
-#include "tolerance.h"
+#include "stf/fit/tolerance.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,10 +8,10 @@
 #include <stdexcept>
 
 #include "alpha_tilt.h"
-#include "evaluate.h"
-#include "grid.h"
+#include "stf/fit/evaluate.h"
+#include "stf/core/grid.h"
 #include "parallel.h"
-#include "vmf_fit.h"
+#include "stf/fit/vmf_fit.h"
 
 namespace stf::fit {
 

@@ -1,4 +1,4 @@
-#include "vmf_fit.h"
+#include "stf/fit/vmf_fit.h"
 
 #include <ceres/ceres.h>
 

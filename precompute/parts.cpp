@@ -1,4 +1,4 @@
-#include "parts.h"
+#include "stf/precompute/parts.h"
 
 #include <H5Cpp.h>
 
@@ -7,8 +7,8 @@
 #include <numeric>
 #include <stdexcept>
 
-#include "files.h"
-#include "h5io.h"
+#include "stf/core/files.h"
+#include "stf/core/h5io.h"
 
 namespace stf {
 

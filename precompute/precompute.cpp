@@ -1,4 +1,4 @@
-#include "precompute.h"
+#include "stf/precompute/precompute.h"
 
 #include <chrono>
 #include <condition_variable>
@@ -10,10 +10,10 @@
 #include <thread>
 #include <vector>
 
-#include "grid.h"
-#include "minimal_table.h"
-#include "walk.h"
-#include "clock.h"
+#include "stf/core/grid.h"
+#include "stf/core/minimal_table.h"
+#include "stf/precompute/walk.h"
+#include "stf/core/clock.h"
 
 namespace stf {
 

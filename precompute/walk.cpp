@@ -1,13 +1,13 @@
-#include "walk.h"
+#include "stf/precompute/walk.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
-#include "fastmath.h"
-#include "geometry.h"
+#include "stf/core/fastmath.h"
+#include "stf/core/geometry.h"
 #include "stf/hg.h"
-#include "rng.h"
+#include "stf/core/rng.h"
 
 namespace stf {
 

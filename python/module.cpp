@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "arrays.h"
-#include "model_io.h"
+#include "stf/fit/model_io.h"
 #include "stf/lookup.h"
 #include "stf/pack.h"
 #include "stf/sampler.h"

@@ -1,4 +1,4 @@
-#include "png.h"
+#include "stf/render/png.h"
 
 #include <algorithm>
 #include <array>

@@ -1,4 +1,4 @@
-#include "render.h"
+#include "stf/render/render.h"
 
 #include <algorithm>
 #include <atomic>
@@ -6,7 +6,7 @@
 #include <mutex>
 #include <thread>
 
-#include "clock.h"
+#include "stf/core/clock.h"
 
 namespace stf::render {
 

@@ -1,4 +1,4 @@
-#include "tracer.h"
+#include "stf/render/tracer.h"
 
 #include <cmath>
 

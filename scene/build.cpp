@@ -1,4 +1,4 @@
-#include "build.h"
+#include "stf/scene/build.h"
 
 #include <sys/stat.h>
 #include <unistd.h>
@@ -11,12 +11,12 @@
 #include <limits>
 #include <stdexcept>
 
-#include "files.h"
-#include "fit_table.h"
-#include "grid.h"
-#include "tolerance.h"
-#include "model_io.h"
-#include "precompute.h"
+#include "stf/core/files.h"
+#include "stf/fit/fit_table.h"
+#include "stf/core/grid.h"
+#include "stf/fit/tolerance.h"
+#include "stf/fit/model_io.h"
+#include "stf/precompute/precompute.h"
 #include "stf/pack.h"
 
 namespace stf::scene {

@@ -1,4 +1,4 @@
-#include "plan.h"
+#include "stf/scene/plan.h"
 
 #include <sys/stat.h>
 
@@ -8,7 +8,7 @@
 #include <sstream>
 #include <tuple>
 
-#include "model_io.h"
+#include "stf/fit/model_io.h"
 
 namespace stf::scene {
 

@@ -1,4 +1,4 @@
-#include "scene.h"
+#include "stf/scene/scene.h"
 
 #include <toml.hpp>
 
@@ -6,9 +6,9 @@
 #include <cstdio>
 #include <set>
 
-#include "fit_table.h"
-#include "grid.h"
-#include "precompute.h"
+#include "stf/fit/fit_table.h"
+#include "stf/core/grid.h"
+#include "stf/precompute/precompute.h"
 
 namespace stf::scene {
 

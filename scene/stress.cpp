@@ -1,15 +1,15 @@
-#include "stress.h"
+#include "stf/scene/stress.h"
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 
-#include "fit_table.h"
-#include "precompute.h"
-#include "rng.h"
+#include "stf/fit/fit_table.h"
+#include "stf/precompute/precompute.h"
+#include "stf/core/rng.h"
 #include "stf/pack.h"
 #include "stf/sampler.h"
-#include "clock.h"
+#include "stf/core/clock.h"
 
 namespace stf::scene {
 

@@ -15,8 +15,8 @@
 #include <thread>
 
 #include "cli_fixture.h"
-#include "h5io.h"
-#include "table.h"
+#include "stf/core/h5io.h"
+#include "stf/core/table.h"
 
 
 namespace {

@@ -13,7 +13,7 @@
 
 #include "forget_checksum.h"
 #include "cli_fixture.h"
-#include "table.h"
+#include "stf/core/table.h"
 
 namespace {
 

@@ -6,7 +6,7 @@
 #include <map>
 
 #include "cli_fixture.h"
-#include "h5io.h"
+#include "stf/core/h5io.h"
 
 namespace {
 

@@ -1,7 +1,7 @@
 // A run past one process: MPI ranks, shards merged, and resuming a killed run all give the
 // table of one uninterrupted process, bit for bit.
 #include "cli_fixture.h"
-#include "table.h"
+#include "stf/core/table.h"
 
 namespace {
 

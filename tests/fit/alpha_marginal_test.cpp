@@ -9,8 +9,8 @@
 #include <numeric>
 #include <random>
 
-#include "fit_table.h"
-#include "precompute.h"
+#include "stf/fit/fit_table.h"
+#include "stf/precompute/precompute.h"
 #include "seed.h"
 
 namespace stf::fit {

@@ -1,7 +1,7 @@
 // Whole tables: stiff media, determinism, storage, evaluation.
 #include "forget_checksum.h"
 #include "fit_stages.h"
-#include "fit_table.h"
+#include "stf/fit/fit_table.h"
 #include "sh_fit.h"
 
 #include <H5Cpp.h>
@@ -18,16 +18,16 @@
 #include <random>
 
 #include "alpha_tilt.h"
-#include "evaluate.h"
-#include "grid.h"
+#include "stf/fit/evaluate.h"
+#include "stf/core/grid.h"
 #include "mirror.h"
-#include "model_io.h"
-#include "precompute.h"
-#include "rng.h"
+#include "stf/fit/model_io.h"
+#include "stf/precompute/precompute.h"
+#include "stf/core/rng.h"
 #include "seed.h"
 #include "stf/once_scattered.h"
 #include "stf/tilt.h"
-#include "tolerance.h"
+#include "stf/fit/tolerance.h"
 
 namespace stf::fit {
 namespace {

@@ -4,13 +4,13 @@
 
 #include <cmath>
 
-#include "evaluate.h"
-#include "expected_singular.h"
-#include "fit_table.h"
-#include "grid.h"
-#include "minimal_table.h"
-#include "model_io.h"
-#include "precompute.h"
+#include "stf/fit/evaluate.h"
+#include "stf/fit/expected_singular.h"
+#include "stf/fit/fit_table.h"
+#include "stf/core/grid.h"
+#include "stf/core/minimal_table.h"
+#include "stf/fit/model_io.h"
+#include "stf/precompute/precompute.h"
 #include "stf/once_scattered.h"
 
 namespace stf::fit {

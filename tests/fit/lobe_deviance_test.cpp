@@ -9,7 +9,7 @@
 #include <cmath>
 #include <memory>
 
-#include "rng.h"
+#include "stf/core/rng.h"
 
 namespace stf::fit {
 namespace {

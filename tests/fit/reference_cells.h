@@ -6,7 +6,7 @@
 
 #include <vector>
 
-#include "grid.h"
+#include "stf/core/grid.h"
 #include "stf/vmf.h"
 
 namespace stf::test {

@@ -5,7 +5,7 @@
 
 #include <cmath>
 
-#include "rng.h"
+#include "stf/core/rng.h"
 #include "stf/sh.h"
 
 namespace stf::fit {

@@ -1,15 +1,15 @@
 // Fitting to a tolerance: coarsening, the certificate's statistics, and the whole choice
 // against a large reference.
-#include "tolerance.h"
+#include "stf/fit/tolerance.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
-#include "evaluate.h"
-#include "grid.h"
-#include "precompute.h"
+#include "stf/fit/evaluate.h"
+#include "stf/core/grid.h"
+#include "stf/precompute/precompute.h"
 
 namespace stf::fit {
 namespace {

@@ -1,5 +1,5 @@
 // vMF fitting: mixtures drawn as direction samples, binned by the grid, fitted back.
-#include "vmf_fit.h"
+#include "stf/fit/vmf_fit.h"
 
 #include <gtest/gtest.h>
 
@@ -7,11 +7,11 @@
 #include <cmath>
 #include <limits>
 
-#include "cell_integral.h"
-#include "exp_in_place.h"
+#include "stf/fit/cell_integral.h"
+#include "stf/fit/exp_in_place.h"
 #include "stf/hemisphere.h"
 #include "reference_cells.h"
-#include "rng.h"
+#include "stf/core/rng.h"
 #include "seed.h"
 
 namespace stf::fit {

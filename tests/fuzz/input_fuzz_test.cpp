@@ -17,15 +17,15 @@
 #include <functional>
 #include <sstream>
 
-#include "files.h"
-#include "grid.h"
-#include "h5io.h"
-#include "import.h"
-#include "minimal_table.h"
-#include "model_io.h"
-#include "rng.h"
+#include "stf/core/files.h"
+#include "stf/core/grid.h"
+#include "stf/core/h5io.h"
+#include "stf/core/import.h"
+#include "stf/core/minimal_table.h"
+#include "stf/fit/model_io.h"
+#include "stf/core/rng.h"
 #include "stf/sampler.h"
-#include "table.h"
+#include "stf/core/table.h"
 #include "test_models.h"
 
 namespace stf {

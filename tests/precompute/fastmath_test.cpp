@@ -1,4 +1,4 @@
-#include "fastmath.h"
+#include "stf/core/fastmath.h"
 
 #include <gtest/gtest.h>
 

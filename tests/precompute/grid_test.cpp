@@ -1,4 +1,4 @@
-#include "grid.h"
+#include "stf/core/grid.h"
 
 #include <gtest/gtest.h>
 #include <healpix_base.h>
@@ -9,7 +9,7 @@
 #include <stdexcept>
 
 #include "chi2.h"
-#include "rng.h"
+#include "stf/core/rng.h"
 #include "seed.h"
 
 namespace stf {

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "chi2.h"
-#include "rng.h"
+#include "stf/core/rng.h"
 #include "seed.h"
 
 namespace stf {

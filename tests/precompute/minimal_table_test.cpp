@@ -1,6 +1,6 @@
 // Tables stf did not make: the halves thinned from their counts, the grid recognised from
 // their cells, and the file that holds only the four datasets.
-#include "minimal_table.h"
+#include "stf/core/minimal_table.h"
 
 #include <H5Cpp.h>
 #include <gtest/gtest.h>
@@ -10,9 +10,9 @@
 #include <cstdio>
 #include <random>
 
-#include "files.h"
-#include "grid.h"
-#include "h5io.h"
+#include "stf/core/files.h"
+#include "stf/core/grid.h"
+#include "stf/core/h5io.h"
 #include "seed.h"
 
 namespace stf {

@@ -1,4 +1,4 @@
-#include "table.h"
+#include "stf/core/table.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -6,8 +6,8 @@
 #include <cstdio>
 #include <stdexcept>
 
-#include "parts.h"
-#include "precompute.h"
+#include "stf/precompute/parts.h"
+#include "stf/precompute/precompute.h"
 
 namespace stf {
 namespace {

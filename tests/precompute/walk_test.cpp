@@ -6,12 +6,12 @@
 #include <numeric>
 
 #include "chi2.h"
-#include "grid.h"
+#include "stf/core/grid.h"
 #include "stf/hg.h"
 #include "stf/once_scattered.h"
-#include "precompute.h"
+#include "stf/precompute/precompute.h"
 #include "seed.h"
-#include "walk.h"
+#include "stf/precompute/walk.h"
 
 namespace stf {
 namespace {

@@ -5,9 +5,9 @@
 
 #include <cmath>
 
-#include "plan.h"
-#include "render.h"
-#include "scene.h"
+#include "stf/scene/plan.h"
+#include "stf/render/render.h"
+#include "stf/scene/scene.h"
 
 namespace stf::render {
 namespace {

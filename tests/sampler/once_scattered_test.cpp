@@ -8,9 +8,9 @@
 #include <cmath>
 
 #include "chi2.h"
-#include "evaluate.h"
-#include "grid.h"
-#include "rng.h"
+#include "stf/fit/evaluate.h"
+#include "stf/core/grid.h"
+#include "stf/core/rng.h"
 #include "seed.h"
 #include "stf/hg.h"
 #include "stf/sampler.h"

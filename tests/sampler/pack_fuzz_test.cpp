@@ -6,7 +6,7 @@
 #include <cmath>
 #include <cstring>
 
-#include "rng.h"
+#include "stf/core/rng.h"
 #include "stf/pack.h"
 #include "stf/sampler.h"
 #include "test_models.h"

@@ -7,10 +7,10 @@
 
 #include <cmath>
 
-#include "fit_table.h"
+#include "stf/fit/fit_table.h"
 #include "sh_fit.h"
-#include "precompute.h"
-#include "rng.h"
+#include "stf/precompute/precompute.h"
+#include "stf/core/rng.h"
 #include "stf/sampler.h"
 #include "test_models.h"
 

@@ -6,7 +6,7 @@
 #include <cmath>
 
 #include "chi2.h"
-#include "rng.h"
+#include "stf/core/rng.h"
 #include "seed.h"
 #include "stf/hemisphere.h"
 #include "stf/tilt.h"

@@ -3,7 +3,7 @@
 
 #include <cstdint>
 
-#include "rng.h"
+#include "stf/core/rng.h"
 #include "stf/quadrature.h"
 
 namespace stf::test {

@@ -5,9 +5,9 @@
 #include <filesystem>
 #include <fstream>
 
-#include "build.h"
-#include "plan.h"
-#include "scene.h"
+#include "stf/scene/build.h"
+#include "stf/scene/plan.h"
+#include "stf/scene/scene.h"
 #include "stf/lookup.h"
 
 namespace fs = std::filesystem;

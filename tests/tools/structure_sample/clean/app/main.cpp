@@ -1,0 +1,2 @@
+#include "stf/lib/pub.h"
+int main() { return pub(); }

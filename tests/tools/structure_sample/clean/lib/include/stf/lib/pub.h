@@ -1,0 +1,3 @@
+#pragma once
+#include "stf/lib/low.h"
+int pub();

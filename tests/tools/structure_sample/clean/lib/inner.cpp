@@ -1,0 +1,3 @@
+#include "inner.h"
+#include "stf/lib/low.h"
+int inner() { return low(); }

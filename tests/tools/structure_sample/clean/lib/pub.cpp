@@ -1,0 +1,3 @@
+#include "stf/lib/pub.h"
+#include "inner.h"
+int pub() { return inner() + low(); }

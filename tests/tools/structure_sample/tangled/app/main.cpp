@@ -1,0 +1,5 @@
+#include "inner.h"
+#include "low.h"
+#include "own.h"
+#include "stf/lib/pub.h"
+int main() { return pub() + inner() + own(); }

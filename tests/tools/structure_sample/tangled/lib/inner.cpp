@@ -1,0 +1,3 @@
+#include "inner.h"
+#include "stf/lib/pub.h"  // back up: inner is below pub
+int inner() { return 1; }

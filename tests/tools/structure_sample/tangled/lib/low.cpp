@@ -1,0 +1,2 @@
+#include "stf/lib/low.h"
+int low() { return 2; }
