@@ -2,7 +2,7 @@
 """Peak memory of precompute, fit and eval on fine grids, up to the largest table stf allows.
 
 stf refuses a table whose estimate, cells * (16 * alpha_bins + 40) bytes, exceeds 8 GiB
-(precompute/precompute.h). This runs grids up to that limit and reports, per case, the estimate,
+(stf/precompute/precompute.h). This runs grids up to that limit and reports, per case, the estimate,
 the measured peak resident memory of `stf precompute` (and of fit and eval where --fit is
 given) and their ratio, as JSON; the baseline in the same run is the smallest case.
 

@@ -1,4 +1,4 @@
-// `stf render`: the test scene (render/render_scene.h) by brute force or through shell strides, to
+// `stf render`: the test scene (stf/render/render_scene.h) by brute force or through shell strides, to
 // show that a renderer using stf gets the brute-force picture, and how much sooner.
 #include <CLI/CLI.hpp>
 #include <H5Cpp.h>

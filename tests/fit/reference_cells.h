@@ -1,7 +1,7 @@
 // Cell probabilities of vMF lobes by the plain point rule of a fine quadrature: each lobe's
 // density at the points (widened by the sub-cell's own angular variance, solid angle / 12 per
 // axis, so a lobe narrower than a sub-cell is not lost between points), its masses normalised
-// over the sphere. The tests' reference for what fit/cell_integral.h integrates faster.
+// over the sphere. The tests' reference for what stf/fit/cell_integral.h integrates faster.
 #pragma once
 
 #include <vector>

@@ -1,4 +1,4 @@
-// The stiff and extreme sweep (scene/stress.h): every number finite, every limit physical.
+// The stiff and extreme sweep (stf/scene/stress.h): every number finite, every limit physical.
 // Diffusive cases (tau = 1000 would need ~5e5 collisions per path) run under a collision cap
 // whose truncated weight is booked. The table printed is for reading, not asserted on.
 #include "stf/scene/stress.h"

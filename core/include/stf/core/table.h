@@ -35,7 +35,7 @@ struct Table {
   bool has_medium() const { return !std::isnan(medium.sigma_s); }
   Halves halves = Halves::kTallied;
   // True when the singular parts (uncollided_half, once) hold their expected counts from the
-  // medium rather than the walk's tallies (fit/expected_singular.h).
+  // medium rather than the walk's tallies (stf/fit/expected_singular.h).
   bool singular_expected = false;
   std::int64_t paths = 0;
   std::int64_t seed = 0;

@@ -25,7 +25,7 @@ struct Evaluation {
   std::vector<BinError> per_alpha;
   double tv = 0, kl = 0;  // weighted by the reference's alpha marginal
   // TV of the joint (alpha bin, cell) exit distributions: also counts the alpha marginal's
-  // error; what a tolerance (fit/tolerance.h) bounds.
+  // error; what a tolerance (stf/fit/tolerance.h) bounds.
   double joint_tv = 0;
   double chi2_dof = -1;   // weighted likewise (models only)
   std::int64_t model_bytes = -1;  // models: packed size
