@@ -1,5 +1,6 @@
 // `stf fit`: a raw table to a compact model; `stf eval`: error against a reference table.
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -32,48 +33,55 @@ struct FitOptions {
   bool quiet = false;
 };
 
-std::string report_json(const fit::FitReport& r, const StfModel& m, const std::string& spec) {
-  std::ostringstream s;
-  s << "{\n  \"model\": \"" << spec << "\", \"chosen_size\": " << r.chosen_size << ", \"smoothing\": " << r.smoothing
-    << ", \"window\": \"" << (r.lanczos_window ? "lanczos" : "none") << "\""
-    << ", \"alpha_penalty\": " << r.alpha_penalty << ", \"singular_parts\": \"" << r.singular_parts << "\", \"heldout_halves\": \"" << r.heldout_halves << "\""
-    << ", \"family\": \"" << m.family() << "\"";
+using nlohmann::ordered_json;
+
+// The held-out choices of the blend and the pools, where the fit made them.
+void add_choices(ordered_json& j, const fit::FitReport& r, const StfModel& m) {
   if (!r.blend_heldout_nll.empty()) {
-    s << ", \"alpha_blend\": " << m.alpha_blend << ", \"blend_heldout_nll\": [";
-    for (std::size_t i = 0; i < r.blend_heldout_nll.size(); ++i) s << (i ? ", " : "") << r.blend_heldout_nll[i];
-    s << "], \"blend_heldout_nll_error\": [";
-    for (std::size_t i = 0; i < r.blend_heldout_nll_error.size(); ++i) s << (i ? ", " : "") << r.blend_heldout_nll_error[i];
-    s << "], \"blend_width\": " << r.blend_width << ", \"blend_by_bin_gain\": " << r.blend_by_bin_gain << ", \"blend_by_bin_error\": " << r.blend_by_bin_error;
-    if (!m.alpha_blend_width.empty()) {
-      s << ", \"alpha_blend_width\": [";
-      for (std::size_t i = 0; i < m.alpha_blend_width.size(); ++i) s << (i ? ", " : "") << m.alpha_blend_width[i];
-      s << "]";
-    }
+    j["alpha_blend"] = m.alpha_blend;
+    j["blend_heldout_nll"] = r.blend_heldout_nll;
+    j["blend_heldout_nll_error"] = r.blend_heldout_nll_error;
+    j["blend_width"] = r.blend_width;
+    j["blend_by_bin_gain"] = r.blend_by_bin_gain;
+    j["blend_by_bin_error"] = r.blend_by_bin_error;
+    if (!m.alpha_blend_width.empty()) j["alpha_blend_width"] = m.alpha_blend_width;
   }
   if (!r.pool_sizes.empty()) {
-    s << ", \"neighbour_weight\": " << r.neighbour_weight << ", \"pool_heldout_nll\": {\"unpooled\": "
-      << r.pool_heldout_nll[0];
+    j["neighbour_weight"] = r.neighbour_weight;
+    ordered_json pools = {{"unpooled", r.pool_heldout_nll[0]}};
     for (std::size_t i = 0; i < r.pool_sizes.size(); ++i)
-      s << ", \"pooled " << r.pool_sizes[i] << "\": " << r.pool_heldout_nll[i + 1];
-    s << "}";
+      pools["pooled " + std::to_string(r.pool_sizes[i])] = r.pool_heldout_nll[i + 1];
+    j["pool_heldout_nll"] = pools;
   }
-  s
-    << ",\n  \"fit_time_s\": " << r.fit_time_s << ", \"model_bytes\": " << m.packed_bytes()
-    << ", \"escape_probability\": " << m.escape_probability << ",\n  \"candidates\": [";
-  for (std::size_t i = 0; i < r.candidates.size(); ++i)
-    s << (i ? ", " : "") << "{\"size\": " << r.candidates[i] << ", \"heldout_nll\": " << r.heldout_nll[i]
-      << ", \"heldout_nll_error\": " << r.heldout_nll_error[i] << "}";
-  s << "],\n  \"per_alpha\": [\n";
+}
+
+// The per-bin diagnostics.
+ordered_json bins_json(const fit::FitReport& r, const StfModel& m) {
+  ordered_json bins = ordered_json::array();
   for (std::size_t b = 0; b < r.bins.size(); ++b) {
     const fit::BinDiagnostics& d = r.bins[b];
-    s << "    {\"bin\": " << b << ", \"status\": " << int(m.status[b]) << ", \"escapes\": " << d.escapes
-      << ", \"components\": " << d.components << ", \"deviance\": " << d.deviance << ", \"chi2_dof\": " << d.chi2_dof;
-    if (!r.pools.empty())
-      s << ", \"pool_width\": " << r.pools[b].width << ", \"pool_sloped\": " << (r.pools[b].sloped ? "true" : "false");
-    s << "}" << (b + 1 < r.bins.size() ? ",\n" : "\n");
+    ordered_json bin = {{"bin", b}, {"status", int(m.status[b])}, {"escapes", d.escapes}, {"components", d.components},
+                        {"deviance", d.deviance}, {"chi2_dof", d.chi2_dof}};
+    if (!r.pools.empty()) bin["pool_width"] = r.pools[b].width, bin["pool_sloped"] = r.pools[b].sloped;
+    bins.push_back(bin);
   }
-  s << "  ]\n}\n";
-  return s.str();
+  return bins;
+}
+
+std::string report_json(const fit::FitReport& r, const StfModel& m, const std::string& spec) {
+  ordered_json j = {{"model", spec}, {"chosen_size", r.chosen_size}, {"smoothing", r.smoothing},
+                    {"window", r.lanczos_window ? "lanczos" : "none"}, {"alpha_penalty", r.alpha_penalty},
+                    {"singular_parts", r.singular_parts}, {"heldout_halves", r.heldout_halves}, {"family", m.family()}};
+  add_choices(j, r, m);
+  j["fit_time_s"] = r.fit_time_s;
+  j["model_bytes"] = m.packed_bytes();
+  j["escape_probability"] = m.escape_probability;
+  j["candidates"] = ordered_json::array();
+  for (std::size_t i = 0; i < r.candidates.size(); ++i)
+    j["candidates"].push_back(
+        {{"size", r.candidates[i]}, {"heldout_nll", r.heldout_nll[i]}, {"heldout_nll_error", r.heldout_nll_error[i]}});
+  j["per_alpha"] = bins_json(r, m);
+  return j.dump(2) + "\n";
 }
 
 // --tolerance: resolution and size chosen and certified on the --heldout table.

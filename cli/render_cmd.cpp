@@ -1,6 +1,7 @@
 // `stf render`: the test scene (stf/render/render_scene.h) by brute force or through shell strides, to
 // show that a renderer using stf gets the brute-force picture, and how much sooner.
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 #include <H5Cpp.h>
 
 #include <algorithm>
@@ -137,15 +138,17 @@ std::string shortest(double x) {
 
 // `strides` null for brute force.
 std::string stats_json(const render::Image& image, const PackBuild& build, const render::ShellStrides* strides) {
-  char buf[512];
-  std::snprintf(buf, sizeof buf,
-                "{\"seconds\": %.6g, \"precompute_seconds\": %.6g, \"spheres_computed\": %d, \"paths\": %lld, "
-                "\"collisions\": %lld, \"strides\": %lld, \"mean_radiance\": %.10g, \"spheres\": %d, "
-                "\"smallest_sphere_tau\": %.6g, \"largest_sphere_tau\": %.6g}\n",
-                image.seconds, build.seconds, build.spheres_computed, (long long)image.paths, (long long)image.collisions,
-                (long long)image.strides, image.mean_radiance(), strides ? strides->spheres() : 0,
-                strides ? strides->smallest_tau() : 0.0, strides ? strides->largest_tau() : 0.0);
-  return buf;
+  const nlohmann::ordered_json j = {{"seconds", image.seconds},
+                                    {"precompute_seconds", build.seconds},
+                                    {"spheres_computed", build.spheres_computed},
+                                    {"paths", image.paths},
+                                    {"collisions", image.collisions},
+                                    {"strides", image.strides},
+                                    {"mean_radiance", image.mean_radiance()},
+                                    {"spheres", strides ? strides->spheres() : 0},
+                                    {"smallest_sphere_tau", strides ? strides->smallest_tau() : 0.0},
+                                    {"largest_sphere_tau", strides ? strides->largest_tau() : 0.0}};
+  return j.dump(2) + "\n";
 }
 
 void run_render(const RenderOptions& o, const CLI::App& cmd) {

@@ -1,6 +1,7 @@
 // `stf report`: error against run time and the run-time studies (tools/report.py draws them),
 // or with --stress the stiff and extreme sweep as a table.
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 #include <unistd.h>
 
 #include <algorithm>
@@ -41,7 +42,7 @@ std::string self_path() {
 
 
 // "name:sigma_s:sigma_a:g" -> JSON object.
-std::string medium_json(const std::string& spec) {
+nlohmann::ordered_json medium_json(const std::string& spec) {
   std::vector<std::string> parts;
   std::size_t start = 0;
   for (std::size_t colon; (colon = spec.find(':', start)) != std::string::npos; start = colon + 1)
@@ -50,24 +51,21 @@ std::string medium_json(const std::string& spec) {
   if (parts.size() != 4) fail("--medium must be NAME:SIGMA_S:SIGMA_A:G, got '" + spec + "'");
   if (parts[0].empty() || parts[0].find_first_of("\"\\") != std::string::npos)
     fail("--medium '" + spec + "': the NAME must be a non-empty name without quotes or backslashes");
-  char buf[512];
   try {
     std::size_t used[3] = {};
     double s = std::stod(parts[1], &used[0]), a = std::stod(parts[2], &used[1]), g = std::stod(parts[3], &used[2]);
     if (used[0] != parts[1].size() || used[1] != parts[2].size() || used[2] != parts[3].size())
       throw std::invalid_argument("not a number");
     if (!(s >= 0 && a >= 0 && s + a > 0 && s + a <= kMaxTau && g > -1 && g < 1)) throw std::invalid_argument("range");
-    std::snprintf(buf, sizeof buf, "{\"name\": \"%s\", \"sigma_s\": %.17g, \"sigma_a\": %.17g, \"g\": %.17g}",
-                  parts[0].c_str(), s, a, g);
+    return {{"name", parts[0]}, {"sigma_s", s}, {"sigma_a", a}, {"g", g}};
   } catch (const std::exception&) {
     fail("--medium '" + spec + "': need numbers sigma_s, sigma_a >= 0 (not both 0, their sum at most 1e7: a unit-radius medium) and g in (-1, 1)");
   }
-  return buf;
 }
 
 // The pack's media as unit-radius media, at most `n`: for each medium name its entry of the
 // largest tau (the sphere a renderer uses deep inside, where stepping pays off most).
-std::vector<std::string> pack_media(const std::string& path, int n) {
+nlohmann::ordered_json pack_media(const std::string& path, int n) {
   std::vector<PackEntry> entries;
   std::string error;
   if (!read_pack_file(path, entries, error)) fail(path + ": " + error);
@@ -78,7 +76,7 @@ std::vector<std::string> pack_media(const std::string& path, int n) {
     else if (e.model.tau > (*same)->model.tau) *same = &e;
   }
   if (chosen.empty()) fail(path + ": the pack holds no model");
-  std::vector<std::string> media;
+  nlohmann::ordered_json media = nlohmann::ordered_json::array();
   for (const PackEntry* e : chosen) {
     if (int(media.size()) == n) break;
     const StfModel& m = e->model;
@@ -156,16 +154,14 @@ void run_report(const ReportOptions& o) {
   if (o.output.empty()) fail("-o must name the report folder");
   if (o.output == "-" || written_in_place(o.output))
     fail("-o '" + o.output + "': a report is a folder of several files, not a stream or a device");
-  std::vector<std::string> media;
+  nlohmann::ordered_json media = nlohmann::ordered_json::array();
   if (!o.pack.empty()) media = pack_media(o.pack, o.max_media);
   for (const std::string& m : o.media) media.push_back(medium_json(m));
   if (media.empty()) fail("give a pack or --medium NAME:SIGMA_S:SIGMA_A:G");
   refuse_same_file(o.output, "-o", {{o.pack, "the pack"}});
   ReportFolder folder(o.output);
   const std::string list = folder.work() + "/media.json";
-  std::string listed = "[";
-  for (std::size_t i = 0; i < media.size(); ++i) listed += (i ? ", " : "") + media[i];
-  write_durably(list, listed + "]\n", "-o '" + o.output + "' (media.json)");
+  write_durably(list, media.dump(2) + "\n", "-o '" + o.output + "' (media.json)");
   std::vector<std::string> args{"--stf", self_path(), "--media", list, "--out", folder.work()};
   if (o.full) args.push_back("--full");
   run_python("report.py", args, "report");

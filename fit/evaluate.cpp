@@ -1,5 +1,7 @@
 #include "stf/fit/evaluate.h"
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -214,32 +216,24 @@ std::vector<double> expected_weights(const StfModel& model, const Table& table) 
   return joint;
 }
 
-namespace {
-// JSON has no infinity: an infinite KL (the candidate misses cells the reference has) is null.
-std::string number(double v) {
-  if (!std::isfinite(v)) return "null";
-  std::ostringstream s;
-  s.precision(10);
-  s << v;
-  return s.str();
-}
-}  // namespace
-
+// JSON has no infinity: an infinite KL (the candidate misses cells the reference has) is written
+// as null, as nlohmann-json writes every non-finite number.
 std::string to_json(const Evaluation& e) {
-  std::ostringstream s;
-  s << "{\n  \"tv_distance\": " << number(e.tv) << ",\n  \"joint_tv_distance\": " << number(e.joint_tv) << ",\n  \"kl_divergence\": " << number(e.kl)
-    << ",\n  \"chi2_dof\": " << (e.chi2_dof >= 0 ? number(e.chi2_dof) : "null")
-    << ",\n  \"model_bytes\": " << (e.model_bytes >= 0 ? std::to_string(e.model_bytes) : "null")
-    << ",\n  \"table_bytes\": " << e.table_bytes << ",\n  \"per_alpha\": [\n";
+  using nlohmann::ordered_json;
+  auto known = [](double v, bool is) { return is ? ordered_json(v) : ordered_json(nullptr); };  // NaN: null
+  ordered_json j = {{"tv_distance", e.tv},
+                    {"joint_tv_distance", e.joint_tv},
+                    {"kl_divergence", e.kl},
+                    {"chi2_dof", known(e.chi2_dof, e.chi2_dof >= 0)},
+                    {"model_bytes", e.model_bytes >= 0 ? ordered_json(e.model_bytes) : ordered_json(nullptr)},
+                    {"table_bytes", e.table_bytes},
+                    {"per_alpha", ordered_json::array()}};
   for (std::size_t b = 0; b < e.per_alpha.size(); ++b) {
     const BinError& x = e.per_alpha[b];
-    s << "    {\"bin\": " << b << ", \"weight\": " << number(x.weight) << ", \"tv_distance\": " << number(x.tv)
-      << ", \"kl_divergence\": " << number(x.kl)
-      << ", \"chi2_dof\": " << (x.chi2_dof >= 0 ? number(x.chi2_dof) : "null") << "}"
-      << (b + 1 < e.per_alpha.size() ? ",\n" : "\n");
+    j["per_alpha"].push_back({{"bin", b}, {"weight", x.weight}, {"tv_distance", x.tv}, {"kl_divergence", x.kl},
+                              {"chi2_dof", known(x.chi2_dof, x.chi2_dof >= 0)}});
   }
-  s << "  ]\n}\n";
-  return s.str();
+  return j.dump(2) + "\n";
 }
 
 }  // namespace stf::fit

@@ -1,5 +1,7 @@
 #include "stf/precompute/parts.h"
 
+#include <fmt/format.h>
+
 #include <H5Cpp.h>
 
 #include <algorithm>
@@ -14,16 +16,10 @@ namespace stf {
 
 namespace {
 
-std::string exact(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
-
 // The run-identifying fields of a table, in the fingerprint's words.
 std::string table_run(const Table& t) {
-  return "sigma_s " + exact(t.medium.sigma_s) + ", sigma_a " + exact(t.medium.sigma_a) + ", g " + exact(t.medium.g) +
-         ", radius " + exact(t.medium.radius) + ", grid " + t.grid + ", alpha bins " + std::to_string(t.alpha_bins) +
+  return "sigma_s " + fmt::format("{:.17g}", t.medium.sigma_s) + ", sigma_a " + fmt::format("{:.17g}", t.medium.sigma_a) + ", g " + fmt::format("{:.17g}", t.medium.g) +
+         ", radius " + fmt::format("{:.17g}", t.medium.radius) + ", grid " + t.grid + ", alpha bins " + std::to_string(t.alpha_bins) +
          ", paths " + std::to_string(t.run_paths) + ", seed " + std::to_string(t.seed) + ", max_scatter " +
          std::to_string(t.max_scatter) + ", " + t.generator;
 }
@@ -50,8 +46,8 @@ std::string difference(const std::string& a, const std::string& b) {
 }  // namespace
 
 std::string run_fingerprint(const Medium& m, const PrecomputeSettings& s) {
-  return "sigma_s " + exact(m.sigma_s) + ", sigma_a " + exact(m.sigma_a) + ", g " + exact(m.g) + ", radius " +
-         exact(m.radius) + ", grid " + s.grid + ", alpha bins " + std::to_string(s.alpha_bins) + ", paths " +
+  return "sigma_s " + fmt::format("{:.17g}", m.sigma_s) + ", sigma_a " + fmt::format("{:.17g}", m.sigma_a) + ", g " + fmt::format("{:.17g}", m.g) + ", radius " +
+         fmt::format("{:.17g}", m.radius) + ", grid " + s.grid + ", alpha bins " + std::to_string(s.alpha_bins) + ", paths " +
          std::to_string(s.paths) + ", seed " + std::to_string(s.seed) + ", max_scatter " +
          std::to_string(s.max_scatter) + ", stf " STF_VERSION + ", part " + std::to_string(s.part) + " of " +
          std::to_string(s.parts);

@@ -1,5 +1,7 @@
 #include "stf/precompute/precompute.h"
 
+#include <fmt/format.h>
+
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
@@ -17,28 +19,18 @@
 
 namespace stf {
 
-namespace {
-
-std::string number(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
-
-}  // namespace
-
 std::optional<std::string> validate(const Medium& m, const PrecomputeSettings& s) {
   if (!(std::isfinite(m.sigma_s) && m.sigma_s >= 0))
-    return "--sigma-s must be a finite number >= 0, got " + number(m.sigma_s);
+    return "--sigma-s must be a finite number >= 0, got " + fmt::format("{:g}", m.sigma_s);
   if (!(std::isfinite(m.sigma_a) && m.sigma_a >= 0))
-    return "--sigma-a must be a finite number >= 0, got " + number(m.sigma_a);
-  if (!(m.g > -1 && m.g < 1)) return "--g must be in (-1, 1), got " + number(m.g);
+    return "--sigma-a must be a finite number >= 0, got " + fmt::format("{:g}", m.sigma_a);
+  if (!(m.g > -1 && m.g < 1)) return "--g must be in (-1, 1), got " + fmt::format("{:g}", m.g);
   if (!(std::isfinite(m.radius) && m.radius > 0))
-    return "--radius must be a finite number > 0, got " + number(m.radius);
+    return "--radius must be a finite number > 0, got " + fmt::format("{:g}", m.radius);
   if (!(m.sigma_t() > 0))
     return "--sigma-s and --sigma-a must not both be 0 (a vacuum has no table)";
   if (!(std::isfinite(m.tau()) && m.tau() <= kMaxTau))
-    return "--radius times (--sigma-s + --sigma-a) must be at most " + number(kMaxTau) + ", got " + number(m.tau());
+    return "--radius times (--sigma-s + --sigma-a) must be at most " + fmt::format("{:g}", kMaxTau) + ", got " + fmt::format("{:g}", m.tau());
   if (s.alpha_bins < 1 || s.alpha_bins > kMaxAlphaBins)
     return "--alpha-bins must be in 1.." + std::to_string(kMaxAlphaBins) + ", got " + std::to_string(s.alpha_bins);
   if (s.paths < 1) return "--paths must be at least 1, got " + std::to_string(s.paths);
@@ -60,7 +52,7 @@ std::optional<std::string> validate(const Medium& m, const PrecomputeSettings& s
   }
   if (double bytes = table_bytes(cells, s.alpha_bins); bytes > kMaxTableBytes)
     return "--grid " + s.grid + " with --alpha-bins " + std::to_string(s.alpha_bins) + " needs about " +
-           number(bytes / (1 << 30)) + " GiB of memory; stf keeps tables up to " + number(kMaxTableBytes / (1 << 30)) +
+           fmt::format("{:g}", bytes / (1 << 30)) + " GiB of memory; stf keeps tables up to " + fmt::format("{:g}", kMaxTableBytes / (1 << 30)) +
            " GiB (use fewer alpha bins or a coarser grid)";
   return std::nullopt;
 }

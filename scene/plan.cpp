@@ -1,6 +1,10 @@
 #include "stf/scene/plan.h"
 
+#include <fmt/format.h>
+
 #include <sys/stat.h>
+
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -14,17 +18,11 @@ namespace stf::scene {
 
 namespace {
 
-std::string fmt(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.12g", v);
-  return buf;
-}
-
 std::string cache_key(const Settings& s, double tau, double albedo, double g) {
-  std::string text = "stf " STF_VERSION ";tau=" + fmt(tau) + ";albedo=" + fmt(albedo) + ";g=" + fmt(g) +
+  std::string text = "stf " STF_VERSION ";tau=" + fmt::format("{:.12g}", tau) + ";albedo=" + fmt::format("{:.12g}", albedo) + ";g=" + fmt::format("{:.12g}", g) +
                      ";paths=" + std::to_string(s.paths) + ";grid=" + s.grid + ";bins=" + std::to_string(s.alpha_bins) +
                      ";model=" + s.model + ";seed=" + std::to_string(s.seed) +
-                     (s.tolerance > 0 ? ";tolerance=" + fmt(s.tolerance) : "");
+                     (s.tolerance > 0 ? ";tolerance=" + fmt::format("{:.12g}", s.tolerance) : "");
   std::uint64_t h = 0xcbf29ce484222325ull;
   for (unsigned char c : text) h = (h ^ c) * 0x100000001b3ull;
   char buf[17];
@@ -83,7 +81,7 @@ Plan make_plan(const Scene& scene, const std::string& cache_dir) {
     const double tau_min = sigma_t * m.radius_min, tau_max = sigma_t * m.radius_max;
     if (tau_max < s.tau_skip) {
       plan.entries.push_back({tau_max, albedo, m.g, {m.name}, "skip",
-                              "largest optical radius " + fmt(tau_max) + " is below tau_skip " + fmt(s.tau_skip) +
+                              "largest optical radius " + fmt::format("{:.12g}", tau_max) + " is below tau_skip " + fmt::format("{:.12g}", s.tau_skip) +
                                   ": the renderer tracks this medium directly",
                               "", {}});
       continue;
@@ -93,7 +91,7 @@ Plan make_plan(const Scene& scene, const std::string& cache_dir) {
     for (int k = k0;; ++k) {
       const double tau = s.tau_skip * std::pow(s.tau_ratio, k);
       if (tau > tau_max * (1 + 1e-12)) break;
-      auto id = std::make_tuple(fmt(tau), fmt(albedo), fmt(m.g));
+      auto id = std::make_tuple(fmt::format("{:.12g}", tau), fmt::format("{:.12g}", albedo), fmt::format("{:.12g}", m.g));
       if (auto it = shared.find(id); it != shared.end()) {
         plan.entries[it->second].media.push_back(m.name);
         continue;
@@ -105,7 +103,7 @@ Plan make_plan(const Scene& scene, const std::string& cache_dir) {
         e.action = "cached";
         e.reason = "a table and fit with the same inputs and settings are in the cache";
       } else {
-        e.reason = "covers free radii from " + fmt(tau / sigma_t) + " in " + m.name + " (tau " + fmt(tau) + ")";
+        e.reason = "covers free radii from " + fmt::format("{:.12g}", tau / sigma_t) + " in " + m.name + " (tau " + fmt::format("{:.12g}", tau) + ")";
       }
       shared[id] = plan.entries.size();
       plan.entries.push_back(e);
@@ -125,35 +123,40 @@ std::vector<const PlanEntry*> unmet_entries(const Plan& plan) {
   return unmet;
 }
 
-std::string plan_json(const Plan& plan) {
-  std::ostringstream s;
-  s << "{\n  \"settings\": {\"paths\": " << plan.settings.paths << ", \"tolerance\": "
-    << (plan.settings.tolerance > 0 ? fmt(plan.settings.tolerance) : "null") << ", \"grid\": \"" << plan.settings.grid
-    << "\", \"alpha_bins\": " << plan.settings.alpha_bins << ", \"model\": \"" << plan.settings.model
-    << "\", \"tau_skip\": " << fmt(plan.settings.tau_skip) << ", \"tau_ratio\": " << fmt(plan.settings.tau_ratio)
-    << "},\n  \"entries\": [\n";
-  for (std::size_t i = 0; i < plan.entries.size(); ++i) {
-    const PlanEntry& e = plan.entries[i];
-    s << "    {\"tau\": " << fmt(e.tau) << ", \"albedo\": " << fmt(e.albedo) << ", \"g\": " << fmt(e.g)
-      << ", \"action\": \"" << e.action << "\", \"reason\": \"" << e.reason << "\", \"media\": [";
-    for (std::size_t j = 0; j < e.media.size(); ++j) s << (j ? ", " : "") << "\"" << e.media[j] << "\"";
-    s << "]";
-    const bool certified = plan.settings.tolerance > 0 && e.resolution.measured;
-    if (e.action != "skip")
-      s << ", \"tolerance_met\": " << (certified ? (e.resolution.tolerance_met ? "true" : "false") : "null")
-        << ", \"tv_bound\": "
-        << (certified && std::isfinite(e.resolution.tv_bound) ? fmt(e.resolution.tv_bound) : "null");
-    if (!e.key.empty()) {
-      const Resolution& r = e.resolution;
-      s << ", \"key\": \"" << e.key << "\",\n     \"resolution\": {\"chosen\": " << (r.measured ? "true" : "false")
-        << ", \"grid\": \"" << r.grid << "\", \"alpha_bins\": " << r.alpha_bins << ", \"model\": \"" << r.model
-        << "\", \"paths\": " << r.paths << ", \"model_bytes\": " << r.bytes
-        << ", \"tv_bound\": " << (r.tv_bound >= 0 && std::isfinite(r.tv_bound) ? fmt(r.tv_bound) : "null") << "}";
-    }
-    s << "}" << (i + 1 < plan.entries.size() ? ",\n" : "\n");
+namespace {
+
+using nlohmann::ordered_json;
+
+// A bound that is not known (no tolerance, not yet measured, not finite) is null.
+ordered_json bound_or_null(bool known, double v) { return known && std::isfinite(v) ? ordered_json(v) : ordered_json(nullptr); }
+
+ordered_json entry_json(const PlanEntry& e, const Settings& settings) {
+  ordered_json j = {{"tau", e.tau}, {"albedo", e.albedo}, {"g", e.g}, {"action", e.action}, {"reason", e.reason},
+                    {"media", e.media}};
+  const bool certified = settings.tolerance > 0 && e.resolution.measured;
+  if (e.action != "skip") {
+    j["tolerance_met"] = certified ? ordered_json(e.resolution.tolerance_met) : ordered_json(nullptr);
+    j["tv_bound"] = bound_or_null(certified, e.resolution.tv_bound);
   }
-  s << "  ]\n}\n";
-  return s.str();
+  if (!e.key.empty()) {
+    const Resolution& r = e.resolution;
+    j["key"] = e.key;
+    j["resolution"] = {{"chosen", r.measured}, {"grid", r.grid}, {"alpha_bins", r.alpha_bins}, {"model", r.model},
+                       {"paths", r.paths}, {"model_bytes", r.bytes}, {"tv_bound", bound_or_null(r.tv_bound >= 0, r.tv_bound)}};
+  }
+  return j;
+}
+
+}  // namespace
+
+std::string plan_json(const Plan& plan) {
+  const Settings& s = plan.settings;
+  ordered_json j = {{"settings",
+                     {{"paths", s.paths}, {"tolerance", bound_or_null(s.tolerance > 0, s.tolerance)}, {"grid", s.grid},
+                      {"alpha_bins", s.alpha_bins}, {"model", s.model}, {"tau_skip", s.tau_skip}, {"tau_ratio", s.tau_ratio}}},
+                    {"entries", ordered_json::array()}};
+  for (const PlanEntry& e : plan.entries) j["entries"].push_back(entry_json(e, s));
+  return j.dump(2) + "\n";
 }
 
 std::string plan_table(const Plan& plan) {

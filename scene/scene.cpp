@@ -1,5 +1,7 @@
 #include "stf/scene/scene.h"
 
+#include <fmt/format.h>
+
 #include <toml.hpp>
 
 #include <cmath>
@@ -13,12 +15,6 @@
 namespace stf::scene {
 
 namespace {
-
-std::string fmt(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
 
 // "file:line: what" for a value of the scene.
 [[noreturn]] void error_at(const toml::value& v, const std::string& what) {
@@ -88,8 +84,8 @@ Settings read_settings(const toml::value& t) {
   if (double bytes = table_bytes(grid_cell_count(s.grid), s.alpha_bins); bytes > kMaxTableBytes)
     error_at(t.contains("grid") ? t.at("grid") : t.at("alpha_bins"),
              "settings.grid, settings.alpha_bins: a table of " + s.grid + " x " + std::to_string(s.alpha_bins) +
-                 " alpha bins needs about " + fmt(bytes / (1 << 30)) + " GiB; stf keeps tables up to " +
-                 fmt(kMaxTableBytes / (1 << 30)) + " GiB");
+                 " alpha bins needs about " + fmt::format("{:g}", bytes / (1 << 30)) + " GiB; stf keeps tables up to " +
+                 fmt::format("{:g}", kMaxTableBytes / (1 << 30)) + " GiB");
   if (t.contains("model")) {
     s.model = text(t.at("model"), "settings.model");
     try {
@@ -150,8 +146,8 @@ Medium read_medium(const toml::value& t, std::size_t index) {
   const char* key = t.contains("size") ? "size" : "radius_max";
   const double tau_max = (m.sigma_s + m.sigma_a) * m.radius_max;
   expect(tau_max <= kMaxTau, t.at(key),
-         where + key + ": the largest optical radius (sigma_s + sigma_a) * radius_max is " + fmt(tau_max) +
-             ", above the largest table stf computes (tau " + fmt(kMaxTau) + ")");
+         where + key + ": the largest optical radius (sigma_s + sigma_a) * radius_max is " + fmt::format("{:g}", tau_max) +
+             ", above the largest table stf computes (tau " + fmt::format("{:g}", kMaxTau) + ")");
   return m;
 }
 
