@@ -74,6 +74,9 @@ std::int64_t parse_count(const std::string& text, const std::string& option, std
                          std::int64_t max) {
   const std::string allowed = option + " must be a whole number in " + std::to_string(min) + ".." +
                               std::to_string(max) + " (plain or exponent notation), got '" + text + "'";
+  // Digits, a sign, a point and an exponent only: strtod would also take white space, hex and
+  // "inf".
+  if (text.find_first_not_of("0123456789+-.eE") != std::string::npos) fail(allowed);
   errno = 0;
   char* end = nullptr;
   long long exact = std::strtoll(text.c_str(), &end, 10);

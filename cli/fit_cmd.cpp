@@ -84,6 +84,12 @@ std::string report_json(const fit::FitReport& r, const StfModel& m, const std::s
   return j.dump(2) + "\n";
 }
 
+// A table whose medium and tallies disagree (an edited file) can fit to no valid model.
+void refuse_invalid(const StfModel& model, const std::string& table) {
+  if (std::string why = model_error(model); !why.empty())
+    fail(table + ": the model fitted to it is not valid (" + why + "): do its medium and its tallies belong together?");
+}
+
 // --tolerance: resolution and size chosen and certified on the --heldout table.
 fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, const fit::FitSettings& settings,
                                    fit::Provenance& provenance, StepStatus& status) {
@@ -163,6 +169,7 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
   }
   status.finish();
   stop_if_interrupted();
+  refuse_invalid(model, o.table);
   // All staged first: a full disk leaves every old output as it was.
   out.stage(fit::model_file(model, report, provenance));
   if (report_out) report_out->stage(report_json(report, model, o.model));

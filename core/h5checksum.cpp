@@ -81,10 +81,12 @@ void stamp_checksum(std::string& image) {
 }
 
 void verify_checksum(const std::string& path) {
-  Fd file{::open(path.c_str(), O_RDONLY | O_CLOEXEC)};
+  // Without blocking: a FIFO would wait for a writer in open() itself.
+  Fd file{::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK)};
   if (file.fd < 0) throw std::runtime_error("cannot read " + path + ": " + std::strerror(errno));
   struct stat st;
   if (::fstat(file.fd, &st) != 0 || !S_ISREG(st.st_mode)) throw std::runtime_error(path + " is not a regular file");
+  ::fcntl(file.fd, F_SETFL, ::fcntl(file.fd, F_GETFL) & ~O_NONBLOCK);
   char block[kUserBlockBytes];
   const std::size_t got = read_some(file.fd, block, sizeof block, path);
   const std::size_t tag = std::strlen(kTag);

@@ -129,9 +129,12 @@ void check_total(const std::vector<double>& counts, const std::string& path) {
     total += c;
     whole = whole && c == std::floor(c);
   }
+  // A whole count at or past 2^53 may already be another number than the file's (2^53 + 1 reads
+  // as 2^53): refused with the total that would be.
   if (!std::isfinite(total) || total > kMaxTotalWeight)
     throw std::runtime_error(path + ": the counts sum to " + std::to_string(total) + ", more than a table holds (2^62)");
-  if (whole && total > 0x1p53) throw std::runtime_error(path + ": the counts sum beyond 2^53, where float64 no longer counts exactly");
+  if (whole && total >= 0x1p53)
+    throw std::runtime_error(path + ": the counts reach 2^53, where float64 no longer counts whole numbers exactly");
 }
 
 template <typename T>

@@ -7,6 +7,7 @@
 
 #include "stf/core/files.h"
 #include "stf/core/h5io.h"
+#include "stf/model.h"
 #include "stf/vec3.h"
 
 namespace stf {
@@ -172,6 +173,8 @@ std::string table_error(const Table& t) {
   if (t.has_medium() && !(std::isfinite(m.sigma_s) && std::isfinite(m.sigma_a) && m.sigma_s >= 0 && m.sigma_a >= 0 &&
                         m.sigma_t() > 0 && std::isfinite(m.radius) && m.radius > 0 && m.g > -1 && m.g < 1))
     return "medium attributes out of range (sigma_s, sigma_a >= 0 and not both 0, radius > 0, g in (-1, 1))";
+  if (t.has_medium() && !(m.tau() <= kMaxModelTau))
+    return "the medium's tau (" + std::to_string(m.tau()) + ") is above 1e7, the largest stf precomputes";
   if (t.paths < 1 || t.alpha_bins < 1 || t.cells < 1) return "paths, alpha bins and cells must be at least 1";
   if (t.chunk_count > 0 && !(0 <= t.chunk_first && t.chunk_first < t.chunk_last && t.chunk_last <= t.chunk_count &&
                              t.paths <= t.run_paths))
@@ -204,7 +207,8 @@ std::string table_error(const Table& t) {
   const auto& e = t.alpha_edges;
   if (e.front() != 0 || std::abs(e.back() - kPi) > 1e-12) return "/escape/alpha_edges must run from 0 to pi";
   for (std::size_t b = 0; b + 1 < e.size(); ++b)
-    if (!(e[b + 1] > e[b])) return "/escape/alpha_edges must increase";
+    if (!(e[b + 1] - e[b] >= kMinAlphaBinWidth))
+      return "/escape/alpha_edges must increase by at least 1e-6 rad (bin " + std::to_string(b) + ")";
   double total = 0;
   for (std::int64_t c = 0; c < t.cells; ++c) {
     const auto& d = t.direction[c];

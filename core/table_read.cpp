@@ -200,6 +200,13 @@ void read_escapes(const H5::H5File& file, Table& t) {
   }
 }
 
+void forget_once_tally(Table& t) {
+  t.once.clear();
+  t.once_tallied = false;
+  t.sub_bins = 0;
+  for (auto& half : t.multiple_sub_half) half.clear();
+}
+
 void read_grid(const H5::H5File& file, Table& t) {
   const hsize_t cells = hsize_t(t.cells);
   t.solid_angle = get_dataset(file, "/grid/solid_angle", {cells});
@@ -223,6 +230,11 @@ Table read_table(const std::string& path) {
     read_escapes(file, t);
     read_grid(file, t);
     settle_totals(t);
+    // Without a medium the once-scattered part has no exact form (no tau, no g): its escapes are
+    // fitted with the rest, as in a table that never tallied them, and so are the sub-bins of the
+    // escapes after two or more collisions, which are counted apart from them (docs/formats.md,
+    // "Tables stf did not make").
+    if (!t.has_medium()) forget_once_tally(t);
     if (std::string why = table_error(t); !why.empty()) throw std::runtime_error(why);
     if (t.halves == Halves::kTallied) check_weight_against_halves(file, t);
     return t;

@@ -15,8 +15,9 @@ std::vector<double> add_outcomes(StfModel& m, const Escapes& e, const AlphaShape
   const double paths = double(t.paths);
   const SingularParts exact = singular_parts(t);
   const RestProbabilities rest = rest_probabilities(t, exact);
-  m.absorbed_fraction = rest.absorbed;
-  m.truncated_fraction = rest.truncated;
+  // Probabilities, whatever rounding did to a medium at the edge of its range (tau ~ 1e-300).
+  m.absorbed_fraction = std::clamp(rest.absorbed, 0.0, 1.0);
+  m.truncated_fraction = std::clamp(rest.truncated, 0.0, 1.0);
   m.alpha_edges = t.alpha_edges;
   std::vector<double> escapes = alpha.marginal.bin_escapes.empty() ? e.total : alpha.marginal.bin_escapes;
   for (double& x : escapes) x *= rest.fitted_scale;

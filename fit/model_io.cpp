@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <stdexcept>
 
@@ -141,6 +142,8 @@ void put_diagnostics(H5::H5File& file, const StfModel& m, const FitReport& r) {
 }  // namespace
 
 std::string model_file(const StfModel& m, const FitReport& r, const Provenance& p) {
+  // What the reader would refuse is not written.
+  if (std::string why = model_error(m); !why.empty()) throw std::runtime_error("the model is not valid: " + why);
   try {
     H5::Exception::dontPrint();
     MemoryFile memory;
@@ -261,6 +264,9 @@ std::vector<double> read_chi2_dof(const std::string& path) {
 
 StfModel read_model_or_pack(const std::string& path) {
   ReadingInput reading;
+  std::error_code code;
+  if (std::filesystem::exists(path, code) && !std::filesystem::is_regular_file(path, code))
+    throw std::runtime_error("'" + path + "' is not a regular file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error("'" + path + "': " + std::strerror(errno));
   char magic[8] = {};

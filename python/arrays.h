@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <unistd.h>
 #include <vector>
 
 #include "stf/vec3.h"
@@ -55,8 +56,53 @@ inline py::ssize_t count_of(const Doubles& a, const char* what) {
 // rounds of 2^20 items a thread, and between rounds a Ctrl-C raises KeyboardInterrupt: a long
 // draw stops within a fraction of a second. Every item depends on its index alone, so the
 // rounds change no result.
+// A Python whole number (an int, or anything with __index__) in [0, hi], or an error naming
+// `what`: pybind11 would raise TypeError for values that are merely out of range.
+inline std::uint64_t whole_in(const py::object& v, std::uint64_t hi, const char* what) {
+  PyObject* index = PyNumber_Index(v.ptr());
+  const unsigned long long x = index ? PyLong_AsUnsignedLongLong(index) : 0;
+  Py_XDECREF(index);
+  if (PyErr_Occurred() || x > hi) {
+    PyErr_Clear();
+    throw Error(std::string(what) + " must be a whole number in 0.." + std::to_string(hi));
+  }
+  return x;
+}
+
+// A Python number as a double, or an error naming `what`.
+inline double number_of(const py::object& v, const char* what) {
+  const double x = PyFloat_AsDouble(v.ptr());
+  if (PyErr_Occurred()) {
+    PyErr_Clear();
+    throw Error(std::string(what) + " must be a number");
+  }
+  return x;
+}
+
+// A count of draws whose arrays (57 bytes a draw) fit in this machine's memory.
+inline py::ssize_t draws_of(const py::object& v) {
+  const double memory = double(::sysconf(_SC_PHYS_PAGES)) * double(::sysconf(_SC_PAGESIZE));
+  const auto most = std::uint64_t(std::min(0.5 * memory / 57, 9e18));
+  return py::ssize_t(whole_in(v, most, "n (draws that fit in memory)"));
+}
+
+// A file name: a str, bytes or os.PathLike, without NUL bytes (which would name another file).
+inline std::string path_of(const py::object& path) {
+  try {
+    const py::object name = py::module_::import("os").attr("fspath")(path);
+    const std::string text = py::isinstance<py::bytes>(name) ? std::string(name.cast<py::bytes>()) : name.cast<std::string>();
+    if (text.find('\0') != std::string::npos) throw Error("a file name holding a NUL byte: " + text.substr(0, text.find('\0')) + "...");
+    return text;
+  } catch (const py::error_already_set&) {
+    throw Error("a file name must be a str, bytes or os.PathLike");
+  } catch (const py::cast_error&) {
+    throw Error("a file name must be text that encodes as UTF-8");
+  }
+}
+
 template <typename Body>
-void in_parallel(py::ssize_t n, int threads, Body body) {
+void in_parallel(py::ssize_t n, const py::object& threads_value, Body body) {
+  const int threads = int(whole_in(threads_value, 4096, "threads"));
   const int cores = int(std::max(1u, std::thread::hardware_concurrency()));
   const py::ssize_t t = std::max<py::ssize_t>(1, std::min<py::ssize_t>(threads > 0 ? threads : cores, n / 65536));
   constexpr py::ssize_t kRound = py::ssize_t(1) << 20;
@@ -105,13 +151,10 @@ inline void check_paths(const double* x, const double* w, const double* r, py::s
     const double len = std::sqrt(w[3 * i] * w[3 * i] + w[3 * i + 1] * w[3 * i + 1] + w[3 * i + 2] * w[3 * i + 2]);
     if (!(std::abs(len - 1) < 1e-6)) throw Error("directions must be unit vectors; row " + std::to_string(i) + " has length " + number(len));
   }
-  if (strictly_positive) check_values(r, n, "radii", "finite numbers > 0", [](double v) { return v > 0; });
+  // Densities per area go as 1 / r^2: radii stay where that is a number.
+  if (strictly_positive)
+    check_values(r, n, "radii", "numbers in [1e-150, 1e150]", [](double v) { return v >= 1e-150 && v <= 1e150; });
   else check_values(r, n, "free_radii", "finite numbers (at or below 0 no sphere fits)", [](double) { return true; });
-}
-
-// A path with a NUL byte would name another file than the one given.
-inline void refuse_nul(const std::string& path) {
-  if (path.find('\0') != std::string::npos) throw Error("a file name holding a NUL byte: " + path.substr(0, path.find('\0')) + "...");
 }
 
 inline Vec3 vec(const double* p, py::ssize_t i) {

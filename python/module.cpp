@@ -28,14 +28,12 @@ namespace stf::python {
 class Model {
  public:
   explicit Model(StfModel model) : sampler_(std::make_shared<ShellSampler>(std::move(model))) {}
-  static Model read(const std::string& path) {
-    refuse_nul(path);
-    return Model(fit::read_model_or_pack(path));
-  }
+  static Model read(const py::object& path) { return Model(fit::read_model_or_pack(path_of(path))); }
   const StfModel& model() const { return sampler_->model(); }
 
-  py::dict sample(py::ssize_t n, std::uint64_t seed, int threads) const {
-    if (n < 0) throw Error("n must be >= 0, got " + std::to_string(n));
+  py::dict sample(const py::object& count, const py::object& seed_value, const py::object& threads) const {
+    const py::ssize_t n = draws_of(count);
+    const std::uint64_t seed = whole_in(seed_value, ~std::uint64_t(0), "seed");
     Exits out(n);
     in_parallel(n, threads, [&](py::ssize_t first, py::ssize_t last) {
       SampleStream stream(seed, std::uint64_t(first));
@@ -48,7 +46,7 @@ class Model {
   }
 
   // As `stf sample --eval`: the smooth part's density, 0 off the unit sphere.
-  Doubles pdf(const Doubles& points, const Doubles& directions, int threads) const {
+  Doubles pdf(const Doubles& points, const Doubles& directions, const py::object& threads) const {
     const py::ssize_t n = count_of(points, "exit_point");
     const double *p = rows_of(points, n, 3, "exit_point"),
                  *d = rows_of(directions, n, 3, "exit_direction");
@@ -67,7 +65,7 @@ class Model {
   // ShellSampler::sample_world over arrays: paths at `positions` heading `directions` through
   // spheres of `radii` about them, with the uniforms [n, 4] of each draw.
   py::dict sample_world(const Doubles& positions, const Doubles& directions, const Doubles& radii,
-                        const Doubles& uniforms, int threads) const {
+                        const Doubles& uniforms, const py::object& threads) const {
     const py::ssize_t n = count_of(positions, "positions");
     const double *x = rows_of(positions, n, 3, "positions"),
                  *w = rows_of(directions, n, 3, "directions");
@@ -103,7 +101,7 @@ class Spheres {
   // about each position; the others keep their position and direction (sphere -1, weight 1).
   // The draw by ShellSampler::jump from the uniforms [n, 4] of each path.
   py::dict jump(const Doubles& positions, const Doubles& directions, const Doubles& free_radii,
-                double sigma_t, const Doubles& uniforms, int threads) const {
+                const py::object& sigma_t, const Doubles& uniforms, const py::object& threads) const {
     const double* u = rows_of(uniforms, count_of(positions, "positions"), 4, "uniforms");
     check_uniforms(u, count_of(positions, "positions"));
     return strides_of(positions, directions, free_radii, sigma_t, threads,
@@ -118,7 +116,8 @@ class Spheres {
   // taking as many uniforms as its draw needs from its own stream (the SampleStream of `seed`
   // from draw i 2^20, 4 2^20 uniforms apart): the same strides for any thread count.
   py::dict stride(const Doubles& positions, const Doubles& directions, const Doubles& free_radii,
-                  double sigma_t, std::uint64_t seed, int threads) const {
+                  const py::object& sigma_t, const py::object& seed_value, const py::object& threads) const {
+    const std::uint64_t seed = whole_in(seed_value, ~std::uint64_t(0), "seed");
     return strides_of(positions, directions, free_radii, sigma_t, threads,
                       [&](int k, const Vec3& x, const Vec3& w, double r, py::ssize_t i) {
                         SampleStream stream(seed, std::uint64_t(i) << 20);
@@ -131,11 +130,12 @@ class Spheres {
   // The arrays of jump and stride around `draw(sphere, x, w, radius, i)`.
   template <typename Draw>
   py::dict strides_of(const Doubles& positions, const Doubles& directions, const Doubles& free_radii,
-                      double sigma_t, int threads, Draw draw) const {
+                      const py::object& sigma_value, const py::object& threads, Draw draw) const {
     const py::ssize_t n = count_of(positions, "positions");
     const double *x = rows_of(positions, n, 3, "positions"),
                  *w = rows_of(directions, n, 3, "directions");
     const double* r = rows_of(free_radii, n, 0, "free_radii");
+    const double sigma_t = number_of(sigma_value, "sigma_t");
     if (!(std::isfinite(sigma_t) && sigma_t > 0)) throw Error("sigma_t must be a finite number > 0");
     check_paths(x, w, r, n, false);
     Doubles point({n, py::ssize_t(3)}), direction({n, py::ssize_t(3)}), weight(n);
@@ -166,8 +166,8 @@ class Spheres {
 // A pack: its entries as (name, Model) pairs (stf.Pack).
 class Pack {
  public:
-  explicit Pack(const std::string& path) {
-    refuse_nul(path);
+  explicit Pack(const py::object& path_value) {
+    const std::string path = path_of(path_value);
     std::string error;
     if (!read_pack_file(path, entries_, error)) throw Error(path + ": " + error);
     for (const PackEntry& e : entries_) models_.emplace_back(e.model);
@@ -292,11 +292,14 @@ void add_pack(py::module_& m) {
            "jump through each sphere's stride form (what stf render draws), each path's uniforms "
            "from its own stream of `seed`");
   py::class_<Pack>(m, "Pack", "A pack of models (stf pack, stf build)")
-      .def(py::init<const std::string&>(), py::arg("path"))
+      .def(py::init<const py::object&>(), py::arg("path"))
       .def("__len__", checked(&Pack::size))
       .def("__getitem__",
-           [](py::handle pack, py::ssize_t i) {
+           [](py::handle pack, const py::object& index) {
              const Pack& p = self<Pack>(pack);
+             // Too large for an index is out of range too (IndexError, not TypeError).
+             py::ssize_t i = PyNumber_AsSsize_t(index.ptr(), PyExc_IndexError);
+             if (i == -1 && PyErr_Occurred()) throw py::error_already_set();
              if (i < 0) i += p.size();
              if (i < 0 || i >= p.size()) throw py::index_error("pack entry out of range");
              return py::make_tuple(p.name(i), p.model(i));

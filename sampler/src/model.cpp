@@ -221,7 +221,8 @@ std::string model_error(const StfModel& m) {
   if (m.alpha_edges.front() != 0 || std::abs(m.alpha_edges.back() - kPi) > 1e-9) return "alpha edges must run from 0 to pi";
   double total = 0;
   for (int b = 0; b < bins; ++b) {
-    if (!(m.alpha_edges[b + 1] > m.alpha_edges[b])) return "alpha edges must increase";
+    if (!(m.alpha_edges[b + 1] - m.alpha_edges[b] >= kMinAlphaBinWidth))
+      return "alpha edges must increase by at least 1e-6 rad (bin " + std::to_string(b) + ")";
     if (!finite_in(m.alpha_probability[b], 0, 1)) return "alpha probability negative or not finite";
     if (int(m.status[b]) < 0 || int(m.status[b]) > 2) return "bin status out of range";
     total += m.alpha_probability[b];

@@ -153,6 +153,26 @@ bool fail(std::string& error, const std::string& why) {
 
 bool finite(double v) { return std::isfinite(v); }
 
+// Names are text for every reader (Python's str among them): well-formed UTF-8, shortest forms,
+// no surrogates, no NUL.
+bool valid_utf8(const std::string& s) {
+  for (std::size_t i = 0; i < s.size();) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    const int n = c < 0x80 ? 0 : (c & 0xe0) == 0xc0 ? 1 : (c & 0xf0) == 0xe0 ? 2 : (c & 0xf8) == 0xf0 ? 3 : -1;
+    if (c == 0 || n < 0 || (n > 0 && i + std::size_t(n) >= s.size())) return false;
+    std::uint32_t code = n == 0 ? c : c & (0x3f >> n);
+    for (int k = 1; k <= n; ++k) {
+      const auto d = static_cast<unsigned char>(s[i + std::size_t(k)]);
+      if ((d & 0xc0) != 0x80) return false;
+      code = (code << 6) | (d & 0x3f);
+    }
+    const std::uint32_t least[] = {0, 0x80, 0x800, 0x10000};
+    if (code < least[n] || code > 0x10ffff || (code >= 0xd800 && code <= 0xdfff)) return false;
+    i += std::size_t(n) + 1;
+  }
+  return true;
+}
+
 // A record's fixed fields, before its numbers.
 struct RecordHeader {
   std::uint32_t record = 0;  // bytes, from its start
@@ -168,6 +188,7 @@ bool read_header(Reader& r, PackEntry& e, RecordHeader& h, std::string& error) {
   const std::uint32_t record = h.record = r.get<std::uint32_t>(), name_bytes = r.get<std::uint32_t>();
   if (!r.ok || record > r.size - start || record < 8 || name_bytes > record - 8) return fail(error, "truncated model record");
   e.name.assign(reinterpret_cast<const char*>(r.p + r.at), name_bytes);
+  if (!valid_utf8(e.name)) return fail(error, "model name is not UTF-8 text");
   r.skip(pad4(name_bytes));
   h.kind = r.get<std::uint32_t>(), h.bins = r.get<std::uint32_t>();
   h.size = r.get<std::uint32_t>(), h.nz = r.get<std::uint32_t>();
@@ -193,6 +214,8 @@ bool read_medium(Reader& r, StfModel& m, std::string& error) {
   m.uncollided_fraction = r.get<double>();
   m.once_fraction = r.get<double>();
   if (!(m.once_fraction >= 0 && m.once_fraction <= 1)) return fail(error, "once-scattered fraction out of range");
+  if (!(m.absorbed_fraction >= 0 && m.absorbed_fraction <= 1 && m.truncated_fraction >= 0 && m.truncated_fraction <= 1))
+    return fail(error, "absorbed or truncated fraction out of range [0, 1]");
   if (!(m.tau > 0 && m.tau <= kMaxModelTau && m.albedo >= 0 && m.albedo <= 1 && m.g > -1 && m.g < 1 &&
         m.escape_probability >= 0 && m.escape_probability <= 1 && finite(m.absorbed_fraction) &&
         finite(m.truncated_fraction)))

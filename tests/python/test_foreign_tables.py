@@ -2,6 +2,7 @@
 the command line (ctest, Debian's python3, STF_BINARY set).
 """
 import os
+import signal
 import subprocess
 import tempfile
 import unittest
@@ -241,6 +242,61 @@ class ForeignTables(unittest.TestCase):
         write_bytes(self.path("nul.npy"), b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header)
         self.refused(["nul.npy", "\\x00"], "import", self.path("nul.npy"), "--grid", "healpix:8", "--alpha-bins",
                      self.bins, "-o", self.path("x.h5"))
+
+    def test_a_read_that_never_returns_yields_to_the_first_ctrl_c(self):
+        """A table whose weights HDF5 reads from a FIFO no one writes into: the read never returns
+        (as a library stuck in a malformed file would not), and the first Ctrl-C ends the command
+        at once, exit 130, leaving no lock or temporary."""
+        fifo = self.path("weights.fifo")
+        os.mkfifo(fifo)
+        with h5py.File(self.path("stuck.h5"), "w") as f:
+            f.create_dataset("escape/weight", shape=(self.bins, self.cells), dtype="f8",
+                             external=[(fifo, 0, h5py.h5f.UNLIMITED)])
+            f["escape/alpha_edges"], f["grid/direction"] = self.edges, self.direction
+            f["grid/solid_angle"] = self.solid_angle
+        run = subprocess.Popen([STF, "fit", self.path("stuck.h5"), "--model", "vmf:1", "-o", self.path("m.h5")],
+                               stderr=subprocess.PIPE, text=True, cwd=self.dir.name)
+        try:
+            run.wait(timeout=1.0)  # still reading: it must not have finished
+            self.fail("stf fit returned while its input could not be read")
+        except subprocess.TimeoutExpired:
+            run.send_signal(signal.SIGINT)
+        err = run.communicate(timeout=10)[1]
+        self.assertEqual(run.returncode, 130, err)
+        self.assertIn("interrupted", err)
+        left = [n for n in os.listdir(self.dir.name) if n.startswith("m.h5")]
+        self.assertEqual(left, [])
+
+    def edited_copy(self, source, name, edit):
+        """A copy of an stf file, its checksum cleared (a file another program changed), edited."""
+        with open(source, "rb") as f:
+            data = f.read()
+        write_bytes(self.path(name), bytes(512) + data[512:])
+        with h5py.File(self.path(name), "r+") as f:
+            edit(f)
+        return self.path(name)
+
+    def test_what_fit_writes_from_odd_tables_reads_back_and_odd_values_are_refused(self):
+        check("precompute", "--sigma-s", 4, "--sigma-a", 0.1, "--g", 0.5, "--grid", "healpix:4", "--alpha-bins", 6,
+              "--paths", 20000, "--threads", 1, "--quiet", "-o", self.path("own.h5"))
+        medium = ("sigma_s", "sigma_a", "g", "radius", "tau", "albedo")
+        no_medium = self.edited_copy(self.path("own.h5"), "no_medium.h5", lambda f: [f.attrs.__delitem__(k) for k in medium])
+        tiny = self.edited_copy(self.path("own.h5"), "tiny.h5", lambda f: f.attrs.__setitem__("radius", 1e-300))
+        check("fit", no_medium, "--model", "vmf:2", "--quiet", "-o", self.path("m.h5"))  # tallies, no medium
+        check("sample", self.path("m.h5"), "--count", 100, "-o", self.path("s.h5"))
+        # A medium that contradicts the tallies (tau 4e-300, yet most paths scattered) fits no model.
+        self.refused(["tiny.h5", "not valid"], "fit", tiny, "--model", "vmf:2", "-o", self.path("x.h5"))
+        dense = self.edited_copy(self.path("own.h5"), "dense.h5", lambda f: f.attrs.__setitem__("sigma_s", 2e7))
+        self.refused(["dense.h5", "above 1e7"], "fit", dense, "--model", "vmf:2", "-o", self.path("x.h5"))
+        check("fit", self.path("own.h5"), "--model", "vmf:2", "--quiet", "-o", self.path("own_m.h5"))
+        narrow = self.edited_copy(self.path("own_m.h5"), "narrow.h5", lambda f: f["alpha/edges"].__setitem__(
+            slice(None), np.r_[np.linspace(0, np.pi - 1e-12, len(f["alpha/edges"]) - 1), np.pi]))
+        self.refused(["narrow.h5", "1e-6"], "sample", narrow, "--count", 100, "-o", self.path("x.h5"))
+        write_bytes(self.path("big.txt"), b"0 0 9007199254740993\n")
+        self.refused(["big.txt", "2^53"], "import", self.path("big.txt"), "--grid", "healpix:1", "--alpha-bins", 2,
+                     "-o", self.path("x.h5"))
+        self.refused(["UTF-8"], "pack", self.path("own_m.h5"), "--name", "\udcff\udcfe", "-o", self.path("x.stfpack"))
+        self.assertFalse(any(n.startswith("x.") for n in os.listdir(self.dir.name)))
 
 
 if __name__ == "__main__":

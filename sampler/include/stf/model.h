@@ -137,6 +137,9 @@ inline constexpr int kMaxModelBins = 100000, kMaxLobes = 64, kMaxBandLimit = 64,
 inline constexpr int kMaxAlphaDegree = 64;
 inline constexpr double kMaxShTableCells = 0x1p27;  // bins * sh_nz * 2 sh_nz floats: 512 MiB
 inline constexpr double kMaxModelTau = 1e7;         // the largest table stf precomputes
+// The narrowest alpha bin (radians): a bin's area 2 pi (cos a0 - cos a1) stays a number > 0 even
+// at alpha = pi (100000 equal bins are 3e-5 wide).
+inline constexpr double kMinAlphaBinWidth = 1e-6;
 // The once-scattered part is at most tau e^-tau of the paths, nothing in float64 beyond tau
 // ~745, and its draw's bound is built for tau up to ~1000: a model that claims one above this
 // tau cannot be drawn from.

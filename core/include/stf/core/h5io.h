@@ -137,7 +137,8 @@ auto read_file(const std::string& path, Read read) {
     const std::string& at = current_object();
     throw std::runtime_error("cannot read " + path + (at.empty() ? "" : " at " + at) + ": " + e.getDetailMsg());
   } catch (const std::runtime_error& e) {  // a missing attribute or dataset, a bad value
-    throw std::runtime_error(path + ": " + e.what());
+    const std::string what = e.what();
+    throw std::runtime_error(what.rfind(path + ":", 0) == 0 ? what : path + ": " + what);
   }
 }
 
