@@ -201,7 +201,8 @@ std::string table_error(const Table& t) {
   for (const auto& [key, w] : t.once) {
     const std::uint64_t i = key >> 1;
     if (i >= std::uint64_t(t.alpha_bins) * std::uint64_t(t.cells) || !count(w) || w > t.weight_half[key & 1][i])
-      return "/escape/once_half holds a weight that is negative, not finite or above the cell's escaped weight";
+      return "/escape/once_half of alpha bin " + std::to_string(i / std::uint64_t(t.cells)) + ", cell " +
+             std::to_string(i % std::uint64_t(t.cells)) + " is negative, not finite or above the cell's escaped weight";
   }
   if (std::string why = multiple_sub_error(t); !why.empty()) return why;
   const auto& e = t.alpha_edges;
@@ -213,8 +214,9 @@ std::string table_error(const Table& t) {
   for (std::int64_t c = 0; c < t.cells; ++c) {
     const auto& d = t.direction[c];
     if (!(t.solid_angle[c] > 0 && std::isfinite(t.solid_angle[c])))
-      return "/grid/solid_angle holds a cell that is not > 0 and finite";
-    if (!(std::abs(d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - 1) < 1e-6)) return "/grid/direction holds a non-unit vector";
+      return "/grid/solid_angle of cell " + std::to_string(c) + " is not > 0 and finite";
+    if (!(std::abs(d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - 1) < 1e-6))
+      return "/grid/direction of cell " + std::to_string(c) + " is not a unit vector";
     total += t.solid_angle[c];
   }
   if (std::abs(total - 4 * kPi) > 1e-6 * 4 * kPi) return "/grid/solid_angle does not sum to 4 pi";

@@ -190,11 +190,13 @@ std::string lobes_error(const StfModel& m) {
     for (int k = 0; k < m.lobes; ++k) {
       const VmfLobe& l = m.vmf[std::size_t(b) * m.lobes + k];
       if (!finite_in(l.weight, 0, 1) || !finite_in(l.kappa, 0, kMaxKappa))
-        return "vMF weight or kappa out of range (weight in [0, 1], kappa in [0, " + std::to_string(kMaxKappa) + "])";
-      if (!(std::abs(length(l.mean) - 1) < 1e-6)) return "vMF mean direction is not a unit vector";
+        return "vMF weight or kappa (/vmf/weight, /vmf/kappa) out of range (weight in [0, 1], kappa in [0, " +
+               std::to_string(kMaxKappa) + "]; bin " + std::to_string(b) + ", lobe " + std::to_string(k) + ")";
+      if (!(std::abs(length(l.mean) - 1) < 1e-6))
+        return "vMF mean direction (/vmf/mean) is not a unit vector (bin " + std::to_string(b) + ", lobe " + std::to_string(k) + ")";
       weights += l.weight;
     }
-    if (std::abs(weights - 1) > 1e-6) return "vMF weights of a bin do not sum to 1";
+    if (std::abs(weights - 1) > 1e-6) return "vMF weights (/vmf/weight) of bin " + std::to_string(b) + " do not sum to 1";
   }
   return "";
 }
@@ -223,22 +225,23 @@ std::string model_error(const StfModel& m) {
   for (int b = 0; b < bins; ++b) {
     if (!(m.alpha_edges[b + 1] - m.alpha_edges[b] >= kMinAlphaBinWidth))
       return "alpha edges must increase by at least 1e-6 rad (bin " + std::to_string(b) + ")";
-    if (!finite_in(m.alpha_probability[b], 0, 1)) return "alpha probability negative or not finite";
-    if (int(m.status[b]) < 0 || int(m.status[b]) > 2) return "bin status out of range";
+    if (!finite_in(m.alpha_probability[b], 0, 1))
+      return "alpha probability (/alpha/probability) negative or not finite (bin " + std::to_string(b) + ")";
+    if (int(m.status[b]) < 0 || int(m.status[b]) > 2) return "bin status (/alpha/status) out of range (bin " + std::to_string(b) + ")";
     total += m.alpha_probability[b];
   }
-  if (std::abs(total - 1) > 1e-6) return "alpha probabilities do not sum to 1";
+  if (std::abs(total - 1) > 1e-6) return "alpha probabilities (/alpha/probability) do not sum to 1";
   if (!finite_in(m.once_fraction, 0, 1)) return "once-scattered fraction must be in [0, 1]";
   if (!m.alpha_tilt.empty() && int(m.alpha_tilt.size()) != bins) return "alpha tilts of the wrong count";
   if (m.alpha_blend < 0 || m.alpha_blend > StfModel::kMaxBlend) return "alpha blend out of range [0, 3]";
   if (!m.alpha_blend_width.empty() && int(m.alpha_blend_width.size()) != bins) return "alpha blend widths of the wrong count";
   for (int h : m.alpha_blend_width)
-    if (h < 0 || h > m.alpha_blend) return "alpha blend width out of range [0, alpha_blend]";
+    if (h < 0 || h > m.alpha_blend) return "alpha blend width (/alpha/blend) out of range [0, alpha_blend]";
   for (double t : m.alpha_tilt)
-    if (!finite_in(t, -kMaxTilt, kMaxTilt)) return "alpha tilt out of range [-40, 40]";
+    if (!finite_in(t, -kMaxTilt, kMaxTilt)) return "alpha tilt (/alpha/tilt) out of range [-40, 40]";
   if (!m.alpha_turn.empty() && int(m.alpha_turn.size()) != bins) return "alpha turns of the wrong count";
   for (double r : m.alpha_turn)
-    if (!finite_in(r, -StfModel::kMaxTurn, StfModel::kMaxTurn)) return "alpha turn out of range [-8, 8]";
+    if (!finite_in(r, -StfModel::kMaxTurn, StfModel::kMaxTurn)) return "alpha turn (/alpha/turn) out of range [-8, 8]";
   if (!finite_in(m.uncollided_fraction, 0, m.alpha_probability[0] * (1 + 1e-9)))
     return "uncollided fraction must be in [0, alpha probability of bin 0]";
   if (m.kind == ModelKind::kVmf) {
@@ -249,7 +252,7 @@ std::string model_error(const StfModel& m) {
   if (m.band_limit < 0 || m.sh.size() != std::size_t(bins) * count) return "SH coefficients of the wrong count";
   for (const auto* coefficients : {&m.sh, &m.sh_chebyshev})
     for (double c : *coefficients)
-      if (!std::isfinite(c)) return "SH coefficient not finite";
+      if (!std::isfinite(c)) return "SH coefficient (/sh/coefficients or /sh/chebyshev) not finite";
   for (float v : m.sh_table)
     if (!std::isfinite(v)) return "SH density not finite";
   return draw_error(m);

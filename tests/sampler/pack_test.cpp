@@ -143,9 +143,9 @@ TEST(Pack, TurnsOfTheWrongCountOrOutOfRangeAreRefused) {
   m.alpha_turn = {1, 1, 1};
   EXPECT_EQ(model_error(m), "alpha turns of the wrong count");
   m.alpha_turn = {1, 1, 1, 1, 1, std::nan("")};
-  EXPECT_EQ(model_error(m), "alpha turn out of range [-8, 8]");
+  EXPECT_EQ(model_error(m), "alpha turn (/alpha/turn) out of range [-8, 8]");
   m.alpha_turn = {1, 1, 1, 1, -9, 1};
-  EXPECT_EQ(model_error(m), "alpha turn out of range [-8, 8]");
+  EXPECT_EQ(model_error(m), "alpha turn (/alpha/turn) out of range [-8, 8]");
   EXPECT_EQ(read_error(m), "model 0: alpha turn out of range");
   m.alpha_turn[4] = 8;
   EXPECT_EQ(model_error(m), "");
@@ -159,7 +159,7 @@ TEST(Pack, BlendWidthsOfTheWrongCountOrWiderThanTheBlendAreRefused) {
   m.alpha_blend_width = {1, 2, 0};
   EXPECT_EQ(model_error(m), "alpha blend widths of the wrong count");
   m.alpha_blend_width = {1, 2, 0, 3, 2, 1};
-  EXPECT_EQ(model_error(m), "alpha blend width out of range [0, alpha_blend]");
+  EXPECT_EQ(model_error(m), "alpha blend width (/alpha/blend) out of range [0, alpha_blend]");
   EXPECT_EQ(read_error(m), "model 0: alpha blend width out of range");
   m.alpha_blend_width[3] = 2;
   EXPECT_EQ(model_error(m), "");
