@@ -2,20 +2,20 @@
 
 #include <fmt/format.h>
 
-#include <chrono>
-#include <condition_variable>
-#include <mutex>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <functional>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
-#include <thread>
 #include <vector>
 
+#include "stf/core/clock.h"
 #include "stf/core/grid.h"
 #include "stf/core/minimal_table.h"
+#include "stf/core/parallel.h"
 #include "stf/precompute/walk.h"
-#include "stf/core/clock.h"
 
 namespace stf {
 
@@ -90,22 +90,21 @@ class Driver {
   std::int64_t paths_of(std::int64_t c) const { return std::min(per_chunk_, s_.paths - c * per_chunk_); }
   std::int64_t total_paths() const { return total_paths_; }
   std::int64_t paths_done() const { return paths_done_.load(); }
+  std::int64_t chunks_to_do() const { return std::int64_t(todo_.size()); }
   Progress& state() { return state_; }
 
-  // One worker: walks chunks until none is left; false if cancelled.
-  bool work(const std::atomic<bool>* cancel) {
-    WalkControl control{cancel, &paths_done_};
-    ChunkTally chunk;
-    for (std::size_t i; (i = next_.fetch_add(1)) < todo_.size();) {
-      const std::int64_t c = todo_[i];
-      if (!walk_chunk(setup_, {std::uint64_t(s_.seed), std::uint64_t(c), c * per_chunk_, paths_of(c)}, chunk, control))
-        return false;
-      std::lock_guard<std::mutex> lock(mutex_);
-      chunk.add_to(state_.tally);
-      chunk.clear();
-      state_.done[std::size_t(c - range_.first)] = 1;
-      save_if_due();
-    }
+  // Walks the i-th chunk still to do in the worker's `chunk` and adds it to the tally; false if
+  // cancelled.
+  bool walk(std::size_t i, ChunkTally& chunk, const std::atomic<bool>* cancel) {
+    const WalkControl control{cancel, &paths_done_};
+    const std::int64_t c = todo_[i];
+    if (!walk_chunk(setup_, {std::uint64_t(s_.seed), std::uint64_t(c), c * per_chunk_, paths_of(c)}, chunk, control))
+      return false;
+    std::lock_guard<std::mutex> lock(mutex_);
+    chunk.add_to(state_.tally);
+    chunk.clear();
+    state_.done[std::size_t(c - range_.first)] = 1;
+    save_if_due();
     return true;
   }
 
@@ -126,35 +125,23 @@ class Driver {
   const Checkpointing& checkpointing_;
   Progress state_;
   std::vector<std::int64_t> todo_;
-  std::atomic<std::size_t> next_{0};
   std::int64_t total_paths_ = 0;
   std::atomic<std::int64_t> paths_done_{0};
   std::mutex mutex_;
   std::chrono::steady_clock::time_point last_save_ = std::chrono::steady_clock::now();
 };
 
-// Runs the driver's chunks on `threads` workers, reporting progress every 100 ms (waking at
-// once when they are done); false if a chunk failed or the run was cancelled.
-bool run_workers(Driver& driver, int threads, const std::atomic<bool>* cancel, const ProgressFn& progress,
+// Runs the driver's chunks over the run's threads (stf/core/parallel.h), each worker walking
+// into its own chunk tally, reporting progress every 100 ms; false if a chunk failed or the run
+// was cancelled.
+bool run_workers(Driver& driver, const RunContext& run, const ProgressFn& progress,
                  std::chrono::steady_clock::time_point start) {
-  int running = threads;  // guarded by `mutex`
-  std::mutex mutex;
-  std::condition_variable finished;
-  std::atomic<bool> stopped{false};
-  auto worker = [&] {
-    if (!driver.work(cancel)) stopped = true;
-    std::lock_guard<std::mutex> lock(mutex);
-    --running;
-    finished.notify_one();
-  };
-  std::vector<std::thread> pool;
-  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
-  for (std::unique_lock<std::mutex> lock(mutex); running > 0;) {
-    if (finished.wait_for(lock, std::chrono::milliseconds(100), [&] { return running == 0; })) break;
-    if (progress) progress(driver.paths_done(), driver.total_paths(), seconds_since(start));
-  }
-  for (auto& th : pool) th.join();
-  return !stopped && !(cancel && cancel->load());
+  std::vector<ChunkTally> chunks(std::size_t(run.workers(driver.chunks_to_do())));
+  const auto told = [&] { progress(driver.paths_done(), driver.total_paths(), seconds_since(start)); };
+  return parallel_for(
+      driver.chunks_to_do(), run,
+      [&](std::int64_t i, int worker) { return driver.walk(std::size_t(i), chunks[std::size_t(worker)], run.cancel); },
+      progress ? std::function<void()>(told) : std::function<void()>());
 }
 
 // The table of a finished run's tally (its counts moved out).
@@ -200,9 +187,7 @@ std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& 
 
   Driver driver(setup, s, checkpointing);
   const ChunkRange range = chunk_range(s);
-  int threads = s.threads > 0 ? s.threads : int(std::max(1u, std::thread::hardware_concurrency()));
-  threads = int(std::max<std::int64_t>(1, std::min<std::int64_t>(threads, range.last - range.first)));
-  if (!run_workers(driver, threads, cancel, progress, start)) return std::nullopt;
+  if (!run_workers(driver, RunContext{s.threads, cancel}, progress, start)) return std::nullopt;
   if (progress) progress(driver.total_paths(), driver.total_paths(), seconds_since(start));
   Table table = tally_table(driver.state().tally, medium, s, range, *grid);
   table.paths = driver.total_paths();

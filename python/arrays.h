@@ -15,6 +15,7 @@
 #include <unistd.h>
 #include <vector>
 
+#include "stf/core/parallel.h"
 #include "stf/vec3.h"
 
 namespace stf::python {
@@ -51,11 +52,6 @@ inline py::ssize_t count_of(const Doubles& a, const char* what) {
   return a.shape(0);
 }
 
-// Runs body(first, last) over [0, n) on `threads` threads (0: all cores) in contiguous pieces,
-// without the GIL; pieces of fewer than 65536 items are not worth a thread. The work goes in
-// rounds of 2^20 items a thread, and between rounds a Ctrl-C raises KeyboardInterrupt: a long
-// draw stops within a fraction of a second. Every item depends on its index alone, so the
-// rounds change no result.
 // A Python whole number (an int, or anything with __index__) in [0, hi], or an error naming
 // `what`: pybind11 would raise TypeError for values that are merely out of range.
 inline std::uint64_t whole_in(const py::object& v, std::uint64_t hi, const char* what) {
@@ -100,6 +96,11 @@ inline std::string path_of(const py::object& path) {
   }
 }
 
+// Runs body(first, last) over [0, n) on `threads` threads (0: all cores) in contiguous pieces
+// (stf/core/parallel.h), without the GIL; pieces of fewer than 65536 items are not worth a
+// thread. The work goes in rounds of 2^20 items a thread, and between rounds a Ctrl-C raises
+// KeyboardInterrupt: a long draw stops within a fraction of a second. Every item depends on its
+// index alone, so the rounds change no result.
 template <typename Body>
 void in_parallel(py::ssize_t n, const py::object& threads_value, Body body) {
   const int threads = int(whole_in(threads_value, 4096, "threads"));
@@ -108,17 +109,9 @@ void in_parallel(py::ssize_t n, const py::object& threads_value, Body body) {
   constexpr py::ssize_t kRound = py::ssize_t(1) << 20;
   for (py::ssize_t start = 0; start < n; start += kRound * t) {
     const py::ssize_t m = std::min(n - start, kRound * t);
-    auto piece = [&](py::ssize_t k) { body(start + m * k / t, start + m * (k + 1) / t); };
     {
       py::gil_scoped_release release;
-      std::vector<std::thread> pool;
-      try {
-        for (py::ssize_t k = 1; k < t; ++k) pool.emplace_back(piece, k);
-      } catch (...) {  // no thread to be had: those started finish, the rest runs here
-        for (py::ssize_t k = py::ssize_t(pool.size()) + 1; k < t; ++k) piece(k);
-      }
-      piece(0);
-      for (std::thread& th : pool) th.join();
+      parallel_for(t, RunContext{int(t)}, [&](std::int64_t k, int) { body(start + m * k / t, start + m * (k + 1) / t); });
     }
     if (PyErr_CheckSignals() != 0) throw py::error_already_set();
   }

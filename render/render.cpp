@@ -3,10 +3,10 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <mutex>
-#include <thread>
+#include <functional>
 
 #include "stf/core/clock.h"
+#include "stf/core/parallel.h"
 
 namespace stf::render {
 
@@ -55,39 +55,23 @@ Image render(const Medium& medium, const Method& method, const ImageSettings& s,
   const std::int64_t pixels = std::int64_t(s.width) * s.height;
   image.mean.assign(std::size_t(pixels), 0);
   image.variance_of_mean.assign(std::size_t(pixels), 0);
-  const int threads = s.threads > 0 ? s.threads : int(std::max(1u, std::thread::hardware_concurrency()));
-
-  std::atomic<std::int64_t> next{0}, done{0};
-  std::mutex mutex;
-  double reported = 0;  // seconds at the last progress call (under `mutex`)
-  auto stop = [&] { return cancel && cancel->load(std::memory_order_relaxed); };
-  auto report = [&] {
-    std::unique_lock<std::mutex> lock(mutex, std::try_to_lock);
-    if (!lock) return;
-    const double now = seconds();
-    if (now < reported + 0.2) return;
-    reported = now;
-    progress(done.load() * s.spp, pixels * s.spp, now);
-  };
-  auto worker = [&] {
-    PathCounters counters;
-    for (std::int64_t p; !stop() && (p = next.fetch_add(1)) < pixels;) {
-      const PixelResult r = render_pixel(medium, method, s, p, counters, cancel);
-      image.mean[std::size_t(p)] = r.mean;
-      image.variance_of_mean[std::size_t(p)] = r.variance_of_mean;
-      done.fetch_add(1);
-      if (progress) report();
-    }
-    std::lock_guard<std::mutex> lock(mutex);  // integer sums: the same for any thread count
-    image.collisions += counters.collisions;
-    image.strides += counters.strides;
-  };
-  std::vector<std::thread> pool;
-  for (int t = 0; t < std::min<std::int64_t>(threads, pixels); ++t) pool.emplace_back(worker);
-  for (std::thread& t : pool) t.join();
+  const RunContext run{s.threads, cancel};
+  std::vector<PathCounters> counters(std::size_t(run.workers(pixels)));  // one per worker
+  std::atomic<std::int64_t> done{0};
+  const auto told = [&] { progress(done.load() * s.spp, pixels * s.spp, seconds()); };
+  parallel_for(
+      pixels, run,
+      [&](std::int64_t p, int worker) {
+        const PixelResult r = render_pixel(medium, method, s, p, counters[std::size_t(worker)], cancel);
+        image.mean[std::size_t(p)] = r.mean;
+        image.variance_of_mean[std::size_t(p)] = r.variance_of_mean;
+        done.fetch_add(1);
+      },
+      progress ? std::function<void()>(told) : std::function<void()>(), std::chrono::milliseconds(200));
+  for (const PathCounters& c : counters) image.collisions += c.collisions, image.strides += c.strides;  // integer sums
   image.paths = done.load() * s.spp;
   image.seconds = seconds();
-  if (progress && !stop()) progress(image.paths, pixels * s.spp, image.seconds);
+  if (progress && !run.cancelled()) progress(image.paths, pixels * s.spp, image.seconds);
   return image;
 }
 
