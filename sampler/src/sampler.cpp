@@ -16,15 +16,14 @@ Vec3 rotate_z(const Vec3& v, double c, double s) { return {c * v.x - s * v.y, s 
 
 }  // namespace
 
-ShellSampler::ShellSampler(StfModel model) : model_(std::move(model)) {
+ShellSampler::ShellSampler(StfModel model, std::shared_ptr<const DrawTables> tables) : model_(std::move(model)) {
   const int bins = model_.bins();
   alpha_ = AliasTable(model_.alpha_probability);
-  if (model_.once_fraction > 0) once_ = OnceScattered(model_.tau, model_.g);
   for (double a : model_.alpha_edges) cos_edges_.push_back(std::cos(a));
   cos_edges_.front() = 1, cos_edges_.back() = -1;
   for (int b = 0; b < bins; ++b) tilt_expm1_.push_back(std::expm1(model_.tilt(b)));
   if (model_.hemispherical && model_.lobe_norm.size() != model_.vmf.size()) model_.rebuild_lobe_norms();
-  for (int b = 0; b < bins && model_.hemispherical; ++b) outward_.emplace_back(model_.alpha_edges[b], model_.alpha_edges[b + 1]);
+  tables_ = tables ? std::move(tables) : make_draw_tables(model_);
   for (std::size_t i = 0; i < model_.vmf.size(); ++i) {
     const VmfLobe& l = model_.vmf[i];
     Lobe c;
@@ -34,17 +33,6 @@ ShellSampler::ShellSampler(StfModel model) : model_(std::move(model)) {
     // carries 1 / lobe_norm.
     c.norm = vmf_pdf(l.kappa, 1.0) / (model_.hemispherical ? model_.lobe_norm[i] : 1.0);
     lobes_.push_back(c);
-  }
-  for (int b = 0; b < bins && model_.kind == ModelKind::kVmf; ++b) {
-    double sum = 0;
-    for (int k = 0; k < model_.lobes; ++k) lobe_cdf_.push_back(sum += lobes_[std::size_t(b * model_.lobes + k)].weight);
-  }
-  if (model_.kind == ModelKind::kSh) {
-    // Cells have equal areas, so their masses are the table values.
-    const std::size_t cells = std::size_t(2) * model_.sh_nz * model_.sh_nz;
-    for (int b = 0; b < bins; ++b)
-      cells_.emplace_back(std::vector<double>(model_.sh_table.begin() + std::ptrdiff_t(b * cells),
-                                              model_.sh_table.begin() + std::ptrdiff_t((b + 1) * cells)));
   }
 }
 
@@ -64,7 +52,7 @@ double ShellSampler::direction_pdf(int bin, const Vec3& w) const {
   double p = 0;
   const Lobe* l = &lobes_[std::size_t(bin) * model_.lobes];
   for (int k = 0; k < model_.lobes; ++k) p += l[k].weight * lobe_pdf(l[k], w);
-  return model_.hemispherical ? p * outward_[std::size_t(bin)](w) : p;
+  return model_.hemispherical ? p * tables_->outward[std::size_t(bin)](w) : p;
 }
 
 int ShellSampler::sample_alpha_bin(double u, double& remainder) const { return alpha_.sample(u, remainder); }
@@ -75,7 +63,7 @@ Vec3 ShellSampler::sample_direction(int bin, double u2, double u3) const {
     // choice counts the running sums at or below u2, without branches, in one cache line; a
     // lobe of zero weight is never chosen but as the last (rounding), and then is uniform.
     const int lobes = model_.lobes;
-    const double* cdf = &lobe_cdf_[std::size_t(bin) * lobes];
+    const double* cdf = &tables_->lobe_cdf[std::size_t(bin) * lobes];
     int k = 0;
     for (int j = 0; j + 1 < lobes; ++j) k += cdf[j] <= u2;
     const Lobe& l = lobes_[std::size_t(bin) * lobes + k];
@@ -86,13 +74,13 @@ Vec3 ShellSampler::sample_direction(int bin, double u2, double u3) const {
     // The lobe times the bin's outward factor (<= 1): a lobe draw kept with that probability;
     // the acceptance and any retries come from a stream seeded from (u2, u3).
     RetryStream retry(u2, u3, 0.5, 0.25);
-    const OutwardBin& factor = outward_[std::size_t(bin)];
+    const OutwardBin& factor = tables_->outward[std::size_t(bin)];
     while (retry.uniform() >= factor(w)) w = l.direction(retry.uniform(), retry.uniform());
     return w;
   }
   // Tabulated SH: a cell by mass, then uniform in the cell. What is left of u2 places z, u3 phi.
   double in_cell;
-  const int cell = cells_[bin].sample(u2, in_cell);
+  const int cell = tables_->cells[std::size_t(bin)].sample(u2, in_cell);
   return equal_area_direction(model_.sh_nz, cell, in_cell, u3);
 }
 
@@ -100,7 +88,7 @@ ExitSample ShellSampler::draw(double u0, double u1, double u2, double u3, int& b
   ExitSample s;
   const double once = model_.once_fraction;
   if (u0 < once) {
-    once_.sample(u0 / once, u1, u2, u3, s.point, s.direction);
+    tables_->once.sample(u0 / once, u1, u2, u3, s.point, s.direction);
     s.pdf = once;
     s.component = kOnceScattered;
     bin = -1;

@@ -14,12 +14,12 @@ std::vector<double> outcome_weights(const StfModel& m) {
 
 }  // namespace
 
-StrideForm::StrideForm(const StfModel& model)
+StrideForm::StrideForm(const StfModel& model, std::shared_ptr<const DrawTables> tables)
     : bins_(model.bins()), lobes_per_bin_(model.lobes), sh_(model.kind == ModelKind::kSh),
       turns_(!model.alpha_turn.empty()), escape_probability_(model.escape_probability),
-      outcomes_(outcome_weights(model)), sh_nz_(model.sh_nz) {
+      outcomes_(outcome_weights(model)), sh_nz_(model.sh_nz),
+      tables_(tables ? std::move(tables) : make_draw_tables(model)) {
   const StfModel& m = model;
-  if (m.once_fraction > 0) once_ = OnceScattered(m.tau, m.g);
   for (int b = 0; b < bins_; ++b) {
     const double a0 = m.alpha_edges[std::size_t(b)], a1 = m.alpha_edges[std::size_t(b) + 1];
     const double c0 = b == 0 ? 1.0 : std::cos(a0), c1 = b + 1 == bins_ ? -1.0 : std::cos(a1);
@@ -30,17 +30,8 @@ StrideForm::StrideForm(const StfModel& model)
     const double middle = 0.5 * (a0 + a1), tilt = m.tilt(b);
     bin_.push_back({c0, c1 - c0, om0, om1 - om0, op0, op1 - op0, tilt, std::expm1(tilt), 1 / tilt, middle, std::cos(middle),
                     std::sin(middle), turns_ ? m.alpha_turn[std::size_t(b)] : 0.0, m.blend_width(b)});
-    if (m.hemispherical) outward_.emplace_back(a0, a1);
   }
   for (const VmfLobe& l : m.vmf) lobe_.emplace_back(l);
-  for (int b = 0; b < bins_ && !sh_; ++b) {
-    double sum = 0;
-    for (int k = 0; k < lobes_per_bin_; ++k) lobe_cdf_.push_back(sum += m.vmf[std::size_t(b * lobes_per_bin_ + k)].weight);
-  }
-  const std::size_t cells = std::size_t(2) * sh_nz_ * sh_nz_;
-  for (int b = 0; b < bins_ && sh_; ++b)
-    cells_.emplace_back(std::vector<double>(m.sh_table.begin() + std::ptrdiff_t(b * cells),
-                                            m.sh_table.begin() + std::ptrdiff_t((b + 1) * cells)));
 }
 
 StrideForm::ExitAngle StrideForm::exit_angle(const Bin& bin, double r) const {
@@ -76,7 +67,7 @@ int StrideForm::blend_pick(int b, double u, double v) const {
 }
 
 const StrideForm::Lobe& StrideForm::lobe_pick(int bin, double v) const {
-  const double* cdf = &lobe_cdf_[std::size_t(bin) * lobes_per_bin_];
+  const double* cdf = &tables_->lobe_cdf[std::size_t(bin) * lobes_per_bin_];
   int k = 0;
   for (int j = 0; j + 1 < lobes_per_bin_; ++j) k += cdf[j] <= v;
   return lobe_[std::size_t(bin) * lobes_per_bin_ + k];
@@ -84,13 +75,13 @@ const StrideForm::Lobe& StrideForm::lobe_pick(int bin, double v) const {
 
 Vec3 StrideForm::sh_direction(int bin, double u, double v) const {
   double in_cell;
-  const int cell = cells_[std::size_t(bin)].sample(u, in_cell);
+  const int cell = tables_->cells[std::size_t(bin)].sample(u, in_cell);
   return equal_area_direction(sh_nz_, cell, in_cell, v);
 }
 
 Stride StrideForm::once_scattered(double r, double u1, double u2, double u3) const {
   Stride s;
-  once_.sample(r, u1, u2, u3, s.point, s.direction);
+  tables_->once.sample(r, u1, u2, u3, s.point, s.direction);
   s.component = kOnceScattered;
   return s;
 }

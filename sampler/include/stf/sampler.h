@@ -18,7 +18,7 @@
 #include "stf/alias.h"
 #include "stf/hemisphere.h"
 #include "stf/model.h"
-#include "stf/once_scattered.h"
+#include "stf/draw_tables.h"
 #include "stf/vec3.h"
 
 namespace stf {
@@ -47,7 +47,10 @@ struct WorldExit {
 class ShellSampler {
  public:
   // The model must be valid (as read_pack or fit/ produce it).
-  explicit ShellSampler(StfModel model);
+  // `tables`, when given, must be the draw tables of this model (make_draw_tables), shared with
+  // its stride form; else they are built here.
+  explicit ShellSampler(StfModel model, std::shared_ptr<const DrawTables> tables = nullptr);
+  const std::shared_ptr<const DrawTables>& tables() const { return tables_; }
 
   // (u0, u1, u2, u3) in [0, 1)^4: u0 picks the part (once scattered or the rest) and then the
   // alpha bin (its remainder decides the uncollided delta in bin 0 and places alpha in the bin),
@@ -99,10 +102,7 @@ class ShellSampler {
   std::vector<double> cos_edges_;  // [bins + 1], decreasing
   std::vector<double> tilt_expm1_;  // [bins], expm1 of each bin's tilt
   std::vector<Lobe> lobes_;        // vmf: [bins * lobes]
-  std::vector<double> lobe_cdf_;   // vmf: [bins * lobes], running sums of each bin's weights
-  std::vector<AliasTable> cells_;  // sh: per bin, over its equal-area cells
-  OnceScattered once_;             // when the model has a once-scattered part
-  std::vector<OutwardBin> outward_;  // hemispherical lobes: each bin's outward factor
+  std::shared_ptr<const DrawTables> tables_;  // shared with the model's stride form
 };
 
 // The uniforms of `stf sample --seed K`: SplitMix64 from K, four 53-bit uniforms per draw.

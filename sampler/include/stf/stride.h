@@ -28,7 +28,7 @@
 #include "stf/hemisphere.h"
 #include "stf/math.h"
 #include "stf/model.h"
-#include "stf/once_scattered.h"
+#include "stf/draw_tables.h"
 #include "stf/sampler.h"
 #include "stf/tilt.h"
 #include "stf/vec3.h"
@@ -72,8 +72,9 @@ inline void sincos_angle(double angle, double& s, double& c) {
 
 class StrideForm {
  public:
-  // The model must be valid (as read_pack or fit/ produce it).
-  explicit StrideForm(const StfModel& model);
+  // The model must be valid (as read_pack or fit/ produce it). `tables`, when given, must be the
+  // draw tables of this model (a ShellSampler's tables()); else they are built here.
+  explicit StrideForm(const StfModel& model, std::shared_ptr<const DrawTables> tables = nullptr);
 
   // The exit of a path at `position` heading `direction` (unit) through the sphere of
   // `radius` around it; `uniform()` returns independent uniforms in [0, 1).
@@ -135,11 +136,8 @@ class StrideForm {
   AliasTable outcomes_;  // [bins] smooth bins, then the uncollided delta, then once scattered
   std::vector<Bin> bin_;
   std::vector<Lobe> lobe_;       // vmf: [bins * lobes]
-  std::vector<double> lobe_cdf_;  // vmf: each bin's running sums of its weights
-  std::vector<OutwardBin> outward_;  // hemispherical lobes: per bin, else empty
-  std::vector<AliasTable> cells_;  // sh: per bin, over its equal-area cells
   int sh_nz_ = 0;
-  OnceScattered once_;
+  std::shared_ptr<const DrawTables> tables_;  // lobe sums, SH cells, outward factors, once scattered
 };
 
 template <typename Uniform>
@@ -149,11 +147,11 @@ Vec3 StrideForm::direction(int bin, Uniform& uniform) const {
     return sh_direction(bin, u, uniform());
   }
   const Lobe& l = lobe_pick(bin, uniform());
-  if (outward_.empty()) {
+  if (tables_->outward.empty()) {
     const double u = uniform();
     return l.direction(u, uniform());
   }
-  const OutwardBin& factor = outward_[std::size_t(bin)];
+  const OutwardBin& factor = tables_->outward[std::size_t(bin)];
   for (;;) {
     const double u = uniform(), v = uniform();
     const Vec3 w = l.direction(u, v);
