@@ -10,14 +10,14 @@
 #include <sstream>
 
 #include "cli.h"
-#include "stf/fit/evaluate.h"
+#include "stf/measure/evaluate.h"
 #include "stf/fit/expected_singular.h"
 #include "stf/fit/fit_table.h"
 #include "stf/core/h5io.h"
 #include "stf/core/minimal_table.h"
 #include "stf/fit/model_io.h"
 #include "stf/pack.h"
-#include "stf/fit/tolerance.h"
+#include "stf/measure/tolerance.h"
 
 namespace stf::cli {
 
@@ -91,19 +91,14 @@ void refuse_invalid(const StfModel& model, const std::string& table) {
 }
 
 // --tolerance: resolution and size chosen and certified on the --heldout table.
-fit::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, const fit::FitSettings& settings,
+measure::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, const fit::FitSettings& settings,
                                    fit::Provenance& provenance, StepStatus& status) {
   if (o.heldout.empty()) fail("--tolerance needs --heldout: an independent table of the same medium (another --seed)");
   if (o.alpha_degree >= 0) fail("--alpha-degree and --tolerance cannot be combined");
   const double tolerance = o.tolerance;
   Table heldout = read_table(o.heldout);
-  if (heldout.alpha_bins != table.alpha_bins || heldout.grid != table.grid || heldout.seed == table.seed)
-    fail("--heldout must have the table's grid and alpha bins and another seed");
-  auto same = [](double a, double b) { return std::abs(a - b) <= 1e-12 * std::max(1.0, std::abs(a)); };
-  if (!same(heldout.medium.tau(), table.medium.tau()) || !same(heldout.medium.albedo(), table.medium.albedo()) ||
-      !same(heldout.medium.g, table.medium.g) || heldout.max_scatter != table.max_scatter)
-    fail("--heldout must be a table of the same medium (tau, albedo, g, --max-scatter)");
-  fit::ToleranceFit r = fit::fit_to_tolerance(table, heldout, tolerance, settings);
+  if (std::string why = measure::heldout_error(table, heldout); !why.empty()) fail("--heldout " + why);
+  measure::ToleranceFit r = measure::fit_to_tolerance(table, heldout, tolerance, settings);
   status.finish();
   stop_if_interrupted();  // a cancelled search has no result to state
   provenance.tolerance = tolerance, provenance.tv_bound = r.certificate.tv_bound, provenance.tolerance_met = r.met;
@@ -160,7 +155,7 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
   StfModel model;
   fit::Provenance provenance;
   provenance.model_spec = o.model, provenance.source_table = o.table, provenance.table = &table;
-  std::optional<fit::ToleranceFit> tolerant;
+  std::optional<measure::ToleranceFit> tolerant;
   if (!cmd.count("--tolerance")) {
     model = fit::fit_table(table, settings, &report);
   } else {
@@ -223,18 +218,18 @@ void run_eval(const EvalOptions& o) {
   if (format != "stf-model" && format != "stf-table" && !format.empty())
     fail("'" + o.candidate + "' is neither an stf model nor an stf table");
   Table reference = read_table(o.reference);
-  fit::Evaluation ev;
+  measure::Evaluation ev;
   std::vector<double> joint;
   std::vector<double>* keep_joint = cells_out ? &joint : nullptr;
   try {
     ev = format == "stf-model"
-             ? fit::evaluate(fit::read_model(o.candidate), reference, fit::read_chi2_dof(o.candidate), keep_joint)
-             : fit::evaluate(read_table(o.candidate), reference, keep_joint);
+             ? measure::evaluate(fit::read_model(o.candidate), reference, fit::read_chi2_dof(o.candidate), keep_joint)
+             : measure::evaluate(read_table(o.candidate), reference, keep_joint);
   } catch (const std::invalid_argument& e) {
     fail(std::string("--reference: ") + e.what());
   }
   if (cells_out) write_cells(*cells_out, o, reference, joint);
-  std::string json = fit::to_json(ev);
+  std::string json = measure::to_json(ev);
   if (json_out) json_out->stage(json);
   else std::fputs(json.c_str(), stdout);
   commit_all({json_out ? &*json_out : nullptr, cells_out ? &*cells_out : nullptr});  // both or neither

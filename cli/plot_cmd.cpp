@@ -11,7 +11,7 @@
 #include "stf/core/files.h"
 #include "stf/core/grid.h"
 #include "stf/core/h5io.h"
-#include "stf/fit/evaluate.h"
+#include "stf/measure/evaluate.h"
 #include "stf/fit/model_io.h"
 #include "stf/core/table.h"
 
@@ -113,14 +113,14 @@ void run_plot(const PlotOptions& o) {
       std::unique_ptr<DirectionGrid> grid = make_grid(t.grid);
       int bin = alpha_bin(t, alpha);
       StfModel model = fit::read_model(o.model);
-      std::unique_ptr<fit::BinnedModel> binned;
+      std::unique_ptr<measure::BinnedModel> binned;
       try {
-        binned = std::make_unique<fit::BinnedModel>(model, t, *grid);
+        binned = std::make_unique<measure::BinnedModel>(model, t, *grid);
       } catch (const std::invalid_argument& e) {
         fail("--model: " + std::string(e.what()));
       }
       const fit::QuadratureLevels levels(*grid);
-      fit::SmoothCellCache smooth(model, levels);
+      measure::SmoothCellCache smooth(model, levels);
       std::vector<double> density = binned->bin(bin, std::ref(smooth)).second;
       for (std::int64_t c = 0; c < t.cells; ++c) density[c] /= t.solid_angle[c];
       h5::put_attr(file, "side_by_side", 1);

@@ -6,7 +6,7 @@
 #include <memory>
 
 #include "cli.h"
-#include "stf/fit/evaluate.h"
+#include "stf/measure/evaluate.h"
 #include "stf/fit/expected_singular.h"
 #include "stf/fit/fit_table.h"
 #include "stf/core/h5io.h"
@@ -100,7 +100,7 @@ void run_smooth(const SmoothOptions& o) {
   const StfModel model = fit::fit_table(table, settings, &report);
   status.finish();
   stop_if_interrupted();
-  const std::vector<double> weights = fit::expected_weights(model, table);
+  const std::vector<double> weights = measure::expected_weights(model, table);
   const std::string spec = chosen_spec(model, report);
   out.write(minimal_table_file(table, weights, [&](H5::H5File& f) {
     const H5::H5File input = h5::open_file(o.table);

@@ -1,4 +1,4 @@
-#include "alpha_tilt.h"
+#include "stf/fit/alpha_tilt.h"
 
 #include <cmath>
 

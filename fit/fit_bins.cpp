@@ -190,7 +190,7 @@ std::vector<double> bin_probabilities(const BinFits& fits, int b, const ShSmooth
   }
   std::vector<double> c = fits.sh[b];
   smooth_sh(c, fits.size, t);
-  return clamped_sh_cell_probabilities(c, sh_basis, levels.at(1));
+  return clamped_sh_cell_probabilities(c, sh_basis, levels.at(kShScoreLevel));
 }
 
 }  // namespace stf::fit::stages

@@ -94,7 +94,7 @@ void diagnose(const BinFits& fits, const FitSettings& s, const StfModel& m, cons
     std::vector<double> p = s.kind == ModelKind::kVmf
                                 ? bin_probabilities(fits, b, {}, levels, {}, Tails::kKeep)
                                 : density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, w); },
-                                                             levels.at(2));
+                                                             levels.at(kShMeasureLevel));
     d.deviance = poisson_deviance(counts, p);
     double chi2 = 0;
     int used = 0;

@@ -17,13 +17,13 @@
 #include <stdexcept>
 
 #include "alpha_marginal.h"
-#include "alpha_tilt.h"
+#include "stf/fit/alpha_tilt.h"
 #include "stf/fit/cell_integral.h"
 #include "stf/fit/fit_settings.h"
 #include "stf/core/table.h"
 #include "stf/core/grid.h"
 #include "mirror.h"
-#include "parallel.h"
+#include "stf/fit/parallel.h"
 #include "sh_fit.h"
 #include "stf/once_scattered.h"
 #include "stf/sh.h"

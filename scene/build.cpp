@@ -14,7 +14,7 @@
 #include "stf/core/files.h"
 #include "stf/fit/fit_table.h"
 #include "stf/core/grid.h"
-#include "stf/fit/tolerance.h"
+#include "stf/measure/tolerance.h"
 #include "stf/fit/model_io.h"
 #include "stf/precompute/precompute.h"
 #include "stf/pack.h"
@@ -66,12 +66,12 @@ void compute_to_tolerance(const Plan& plan, const PlanEntry& e, const fit::FitSe
   struct Round {
     Table table;
     std::int64_t heldout_paths = 0;
-    fit::ToleranceFit fit;
+    measure::ToleranceFit fit;
   };
   std::optional<Round> best;
   for (std::int64_t paths = first_round_paths(s);; paths = std::min(s.paths, 4 * paths)) {
     Table table = walk(e, s, paths, s.seed, threads, cancel), heldout = walk(e, s, paths, s.seed + 1, threads, cancel);
-    fit::ToleranceFit r = fit::fit_to_tolerance(table, heldout, s.tolerance, fs);
+    measure::ToleranceFit r = measure::fit_to_tolerance(table, heldout, s.tolerance, fs);
     if (cancel && *cancel) interrupted();
     // Four times the paths halve the noise in the bound; a round that gains under 10% is
     // held back by what the model kind cannot represent, and more paths will not help.
@@ -81,7 +81,7 @@ void compute_to_tolerance(const Plan& plan, const PlanEntry& e, const fit::FitSe
     if (!met && !stalled && paths < s.paths) continue;
     break;
   }
-  const fit::ToleranceFit& r = best->fit;
+  const measure::ToleranceFit& r = best->fit;
   fit::Provenance provenance;
   provenance.model_spec = s.model, provenance.table = &best->table, provenance.fit_grid = r.fitted.grid;
   provenance.tolerance = s.tolerance, provenance.tv_bound = r.certificate.tv_bound, provenance.tolerance_met = r.met;

@@ -17,8 +17,8 @@
 #include <numeric>
 #include <random>
 
-#include "alpha_tilt.h"
-#include "stf/fit/evaluate.h"
+#include "stf/fit/alpha_tilt.h"
+#include "stf/measure/evaluate.h"
 #include "stf/core/grid.h"
 #include "mirror.h"
 #include "stf/fit/model_io.h"
@@ -27,9 +27,10 @@
 #include "seed.h"
 #include "stf/once_scattered.h"
 #include "stf/tilt.h"
-#include "stf/fit/tolerance.h"
+#include "stf/measure/tolerance.h"
 
 namespace stf::fit {
+using namespace stf::measure;  // the measures of models (stf/measure/)
 namespace {
 
 Table make_table(Medium m, std::int64_t paths, const char* grid = "healpix:4", int bins = 18,

@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "stf/fit/evaluate.h"
+#include "stf/measure/evaluate.h"
 #include "stf/fit/expected_singular.h"
 #include "stf/fit/fit_table.h"
 #include "stf/core/grid.h"
@@ -14,6 +14,7 @@
 #include "stf/once_scattered.h"
 
 namespace stf::fit {
+using namespace stf::measure;  // the measures of models (stf/measure/)
 namespace {
 
 const Medium kMedium{1.8, 0.2, 0.5, 1};  // tau 2, albedo 0.9

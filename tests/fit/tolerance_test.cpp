@@ -1,17 +1,18 @@
 // Fitting to a tolerance: coarsening, the certificate's statistics, and the whole choice
 // against a large reference.
-#include "stf/fit/tolerance.h"
+#include "stf/measure/tolerance.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
-#include "stf/fit/evaluate.h"
+#include "stf/measure/evaluate.h"
 #include "stf/core/grid.h"
 #include "stf/precompute/precompute.h"
 
 namespace stf::fit {
+using namespace stf::measure;  // the measures of models (stf/measure/)
 namespace {
 
 Table make_table(double tau, double albedo, double g, std::int64_t paths, std::int64_t seed,

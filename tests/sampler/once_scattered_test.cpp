@@ -8,7 +8,7 @@
 #include <cmath>
 
 #include "chi2.h"
-#include "stf/fit/evaluate.h"
+#include "stf/measure/evaluate.h"
 #include "stf/core/grid.h"
 #include "stf/core/rng.h"
 #include "seed.h"
@@ -18,6 +18,7 @@
 #include "test_numerics.h"
 
 namespace stf {
+using namespace stf::measure;  // the measures of models (stf/measure/)
 namespace {
 
 using test::integrate;
@@ -123,11 +124,11 @@ void expect_sampler_matches_binned_model(const StfModel& model, std::uint64_t se
     layout.cells = grid->cell_count();
     layout.alpha_bins = f * model.bins();
     for (int b = 0; b <= layout.alpha_bins; ++b) layout.alpha_edges.push_back(kPi * b / layout.alpha_bins);
-    const fit::BinnedModel binned(model, layout, *grid);
+    const measure::BinnedModel binned(model, layout, *grid);
     const fit::QuadratureLevels levels(*grid);
     const int n = 400000, bins = layout.alpha_bins;
     std::vector<double> expected, observed(std::size_t(bins) * layout.cells, 0.0);
-    fit::SmoothCellCache smooth(model, levels);
+    measure::SmoothCellCache smooth(model, levels);
     for (int b = 0; b < bins; ++b) {
       auto [probability, p] = binned.bin(b, std::ref(smooth));
       for (double v : p) expected.push_back(n * probability * v);

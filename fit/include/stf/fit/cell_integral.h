@@ -30,6 +30,13 @@ struct BinTurn {
   double rate = 0, a0 = 0, a1 = 0, tilt = 0;
 };
 
+// The quadrature levels SH cell probabilities are taken at. The fit's choice of smoothing
+// scores every candidate on the held-out half, so it integrates at level 1 (4 points a cell), a
+// quarter of level 2's cost; the fit's diagnostics and every measure (stf/measure/) integrate
+// the finished model's density at level 2 (16 points a cell). vMF lobes choose their own level
+// by their width (lobe_cell_probabilities), in the fit and in the measures alike.
+inline constexpr int kShScoreLevel = 1, kShMeasureLevel = 2;
+
 // Cell quadratures of one grid at levels 0 .. kMaxLevel, built once per table.
 class QuadratureLevels {
  public:

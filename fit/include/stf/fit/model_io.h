@@ -14,7 +14,7 @@ struct Provenance {
   std::string model_spec;  // as given to --model
   std::string source_table;
   const Table* table = nullptr;  // its attributes are copied (paths, seed, grid, generator)
-  // Fits to a tolerance (stf/fit/tolerance.h): the target, the certified bound and the table
+  // Fits to a tolerance (stf/measure/tolerance.h): the target, the certified bound and the table
   // that certified it; tolerance <= 0 when the fit had none.
   double tolerance = 0, tv_bound = 0;
   bool tolerance_met = false;

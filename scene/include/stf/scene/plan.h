@@ -10,7 +10,7 @@
 // directly). Entries are cached under a key of every input and setting.
 //
 // With a tolerance, each entry's alpha bins, direction grid, model size and paths are the
-// least that a certified bound puts within it (stf/fit/tolerance.h), found while computing; the
+// least that a certified bound puts within it (stf/measure/tolerance.h), found while computing; the
 // plan lists the settings as upper limits until the entry is cached, then what it chose.
 #pragma once
 

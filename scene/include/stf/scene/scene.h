@@ -11,7 +11,7 @@
 //   tolerance = 0.1            target TV distance of each entry's exit distribution; with it,
 //                              paths, grid, alpha_bins and the model's size are upper limits
 //                              and each entry gets the least that is certified within it
-//                              (stf/fit/tolerance.h; paths in rounds, fourfold each)
+//                              (stf/measure/tolerance.h; paths in rounds, fourfold each)
 //
 //   [[media]]
 //   name = "milk"

@@ -12,7 +12,7 @@
 #include "stf/fit/vmf_fit.h"
 #include "stf/core/table.h"
 
-namespace stf::fit {
+namespace stf::measure {
 
 struct BinError {
   double tv = 0;          // 0.5 sum |p - q| over the reference's cells
@@ -25,7 +25,7 @@ struct Evaluation {
   std::vector<BinError> per_alpha;
   double tv = 0, kl = 0;  // weighted by the reference's alpha marginal
   // TV of the joint (alpha bin, cell) exit distributions: also counts the alpha marginal's
-  // error; what a tolerance (stf/fit/tolerance.h) bounds.
+  // error; what a tolerance (stf/measure/tolerance.h) bounds.
   double joint_tv = 0;
   double chi2_dof = -1;   // weighted likewise (models only)
   std::int64_t model_bytes = -1;  // models: packed size
@@ -39,7 +39,7 @@ int alpha_group_size(const std::vector<double>& edges, const Table& reference);
 // Per-cell probabilities of the fitted density of alpha bin b, integrated over the cells of the
 // grid whose quadratures `levels` holds (build them once for all bins); they sum to 1.
 // With `turn`, of the bin's density turned by that angle about y (StfModel::alpha_turn).
-std::vector<double> smooth_cell_probabilities(const StfModel& model, int bin, const QuadratureLevels& levels,
+std::vector<double> smooth_cell_probabilities(const StfModel& model, int bin, const fit::QuadratureLevels& levels,
                                               double turn = 0);
 
 // A model's exit distribution in a reference table's layout, bin by reference bin, every part in
@@ -66,14 +66,14 @@ class BinnedModel {
   const Table& reference_;
   int group_ = 1;
   std::int64_t pole_cell_ = 0;
-  OnceScatteredCells once_;
+  fit::OnceScatteredCells once_;
 };
 
 // Smooth cell probabilities of model bins as BinnedModel::bin asks for them, in ascending order
 // of the reference bins: each computed once, as many kept as one reference bin needs.
 class SmoothCellCache {
  public:
-  SmoothCellCache(const StfModel& model, const QuadratureLevels& levels) : model_(model), levels_(levels) {}
+  SmoothCellCache(const StfModel& model, const fit::QuadratureLevels& levels) : model_(model), levels_(levels) {}
   const std::vector<double>& operator()(int j, double turn = 0);
 
  private:
@@ -83,7 +83,7 @@ class SmoothCellCache {
     std::vector<double> cells;
   };
   const StfModel& model_;
-  const QuadratureLevels& levels_;
+  const fit::QuadratureLevels& levels_;
   std::vector<Kept> kept_;
 };
 
@@ -103,4 +103,4 @@ std::vector<double> expected_weights(const StfModel& model, const Table& table);
 
 std::string to_json(const Evaluation& e);
 
-}  // namespace stf::fit
+}  // namespace stf::measure

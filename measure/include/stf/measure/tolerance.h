@@ -36,7 +36,7 @@
 #include "stf/model.h"
 #include "stf/core/table.h"
 
-namespace stf::fit {
+namespace stf::measure {
 
 // A table with its alpha bins summed in groups of `alpha_factor` (which must divide their
 // number) and its cells summed into the grid `grid_levels` halvings coarser.
@@ -54,14 +54,18 @@ struct Certificate {
   double chi2_sd = 0;   // its standard deviation
 };
 
+// Why `heldout` cannot certify a model of `table` (it must be independent of it: another seed,
+// and of the same medium, grid and alpha bins), or "" when it can.
+std::string heldout_error(const Table& table, const Table& heldout);
+
 // Certifies a model fitted to (a coarsening of) `fit` against `heldout`, a table it was not
 // fitted to: the model's alpha bins must be groups of the tables'. `settings` gives the threads.
 Certificate certify(const StfModel& model, const Table& fit, const Table& heldout,
-                    const FitSettings& settings = {});
+                    const fit::FitSettings& settings = {});
 
 struct ToleranceFit {
   StfModel model;
-  FitReport report;
+  fit::FitReport report;
   Table fitted;  // the coarsened table the model was fitted to
   int alpha_factor = 1, grid_levels = 0, size = 0;
   Certificate certificate;
@@ -74,6 +78,6 @@ struct ToleranceFit {
 // tolerance the best certified fit is returned with met = false. With settings.cancel set the
 // result must be thrown away.
 ToleranceFit fit_to_tolerance(const Table& fit, const Table& heldout, double tolerance,
-                              const FitSettings& settings);
+                              const fit::FitSettings& settings);
 
-}  // namespace stf::fit
+}  // namespace stf::measure

@@ -1,4 +1,4 @@
-#include "stf/fit/evaluate.h"
+#include "stf/measure/evaluate.h"
 
 #include <nlohmann/json.hpp>
 
@@ -9,12 +9,14 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "alpha_tilt.h"
+#include "stf/fit/alpha_tilt.h"
 #include "stf/fit/cell_integral.h"
 #include "stf/core/grid.h"
 #include "stf/tilt.h"
 
-namespace stf::fit {
+namespace stf::measure {
+
+using namespace stf::fit;  // the fit this measures: its models, cell integrals and settings
 
 namespace {
 
@@ -95,7 +97,7 @@ std::vector<double> smooth_cell_probabilities(const StfModel& m, int b, const Qu
     return lobe_cell_probabilities(lobes, levels, 1e8, &outward);
   }
   return density_cell_probabilities([&](const Vec3& w) { return m.direction_pdf(b, turn_about_y(w, -turn)); },
-                                    levels.at(2));
+                                    levels.at(kShMeasureLevel));
 }
 
 BinnedModel::BinnedModel(const StfModel& model, const Table& reference, const DirectionGrid& grid)
@@ -236,4 +238,4 @@ std::string to_json(const Evaluation& e) {
   return j.dump(2) + "\n";
 }
 
-}  // namespace stf::fit
+}  // namespace stf::measure

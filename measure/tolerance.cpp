@@ -1,4 +1,4 @@
-#include "stf/fit/tolerance.h"
+#include "stf/measure/tolerance.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,13 +7,15 @@
 #include <memory>
 #include <stdexcept>
 
-#include "alpha_tilt.h"
-#include "stf/fit/evaluate.h"
+#include "stf/fit/alpha_tilt.h"
+#include "stf/measure/evaluate.h"
 #include "stf/core/grid.h"
-#include "parallel.h"
+#include "stf/fit/parallel.h"
 #include "stf/fit/vmf_fit.h"
 
-namespace stf::fit {
+namespace stf::measure {
+
+using namespace stf::fit;  // the fit this measures: its models, cell integrals and settings
 
 namespace {
 
@@ -150,6 +152,16 @@ std::vector<std::pair<double, std::vector<double>>> binned_in_parallel(const Stf
 
 }  // namespace
 
+std::string heldout_error(const Table& table, const Table& heldout) {
+  if (heldout.alpha_bins != table.alpha_bins || heldout.grid != table.grid || heldout.seed == table.seed)
+    return "must have the table's grid and alpha bins and another seed";
+  auto same = [](double a, double b) { return std::abs(a - b) <= 1e-12 * std::max(1.0, std::abs(a)); };
+  if (!same(heldout.medium.tau(), table.medium.tau()) || !same(heldout.medium.albedo(), table.medium.albedo()) ||
+      !same(heldout.medium.g, table.medium.g) || heldout.max_scatter != table.max_scatter)
+    return "must be a table of the same medium (tau, albedo, g, --max-scatter)";
+  return "";
+}
+
 Certificate certify(const StfModel& model, const Table& fit, const Table& h,
                     const FitSettings& settings) {
   if (fit.alpha_bins != h.alpha_bins || fit.grid != h.grid)
@@ -245,4 +257,4 @@ ToleranceFit fit_to_tolerance(const Table& t, const Table& heldout, double toler
   return r;
 }
 
-}  // namespace stf::fit
+}  // namespace stf::measure
