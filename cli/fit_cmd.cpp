@@ -148,7 +148,7 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
     fail(o.table + ": --tolerance chooses on held-out halves, which a table of weights without /escape/weight_half lacks");
   if (pack_out && !table.has_medium())
     fail(o.table + " names no medium, and a pack needs one (tau, albedo, g): import the histogram with --sigma-s, --sigma-a and --g");
-  settings.cancel = &interrupted;
+  settings.run.cancel = &interrupted;
   StepStatus status("stf fit", o.quiet);
   settings.progress = [&](const std::string& step, int done, int bins) { status.update(step, done, bins); };
   fit::FitReport report;
@@ -252,7 +252,7 @@ fit::FitSettings fit_settings(const std::string& model, const std::string& threa
   } catch (const std::invalid_argument& e) {
     fail(e.what());
   }
-  settings.threads = int(parse_count(threads, "--threads", 0, 4096));
+  settings.run.threads = int(parse_count(threads, "--threads", 0, 4096));
   return settings;
 }
 

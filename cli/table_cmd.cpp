@@ -93,7 +93,7 @@ void run_smooth(const SmoothOptions& o) {
   // The output copies the input's attributes: one that cannot be copied fails now, not after the fit.
   const std::string copy_error = h5::read_file(o.table, [](H5::H5File& f) { return h5::attributes_error(f); });
   if (!copy_error.empty()) fail(o.table + ": " + copy_error);
-  settings.cancel = &interrupted;
+  settings.run.cancel = &interrupted;
   StepStatus status("stf smooth", o.quiet);
   settings.progress = [&](const std::string& step, int done, int bins) { status.update(step, done, bins); };
   fit::FitReport report;

@@ -237,9 +237,9 @@ ToleranceFit fit_to_tolerance(const Table& t, const Table& heldout, double toler
     fs.size = size;
     FitReport report;
     StfModel model = fit_table(r.fitted, fs, &report);
-    if (s.cancel && s.cancel->load()) return r;
+    if (s.run.cancelled()) return r;
     Certificate cert = certify(model, t, heldout, s);
-    if (s.cancel && s.cancel->load()) return r;
+    if (s.run.cancelled()) return r;
     r.attempts.emplace_back(size, cert.tv_bound);
     // Two larger models in a row that do not lower the bound are fitting noise: more paths
     // are needed.

@@ -93,8 +93,7 @@ void compute_to_tolerance(const Plan& plan, const PlanEntry& e, const fit::FitSe
 void compute(const Plan& plan, const PlanEntry& e, int threads, const std::atomic<bool>* cancel) {
   const Settings& s = plan.settings;
   fit::FitSettings fs = fit::parse_model_spec(s.model);
-  fs.threads = threads;
-  fs.cancel = cancel;
+  fs.run = {threads, cancel};
   if (s.tolerance > 0) return compute_to_tolerance(plan, e, fs, threads, cancel);
   Table table = walk(e, s, s.paths, s.seed, threads, cancel);
   fit::FitReport report;

@@ -49,7 +49,7 @@ StressResult run_stress_case(const StressCase& c, long paths, long max_scatter, 
   r.truncated = t.truncated_weight / double(paths);
 
   fit::FitSettings fs = fit::parse_model_spec("vmf:2");
-  fs.threads = threads;
+  fs.run.threads = threads;
   fit::FitReport report;
   StfModel m = fit::fit_table(t, fs, &report);
   for (const VmfLobe& l : m.vmf) check(std::isfinite(l.kappa) && std::isfinite(l.weight) && std::isfinite(l.mean.z), "model", r);

@@ -100,7 +100,7 @@ TEST(FitTable, StiffMediaGiveFiniteNormalisedModels) {
     Table t = make_table(c.medium, c.paths, "healpix:4", 18, 1, c.max_scatter);
     for (const char* spec : {"vmf:2", "sh:6"}) {
       FitSettings s = parse_model_spec(spec);
-      s.threads = 2;
+      s.run.threads = 2;
       StfModel m = fit_table(t, s);
       expect_sane(m, (std::string(c.what) + " " + spec).c_str());
     }
@@ -265,7 +265,7 @@ TEST(FitTable, AutoIsHemisphericalLobesAtTheirHeldOutSize) {
 TEST(FitTable, ProgressTellsEveryStepToItsLastBin) {
   const Table t = make_table({4, 0.5, 0.3, 1}, 40000, "healpix:4", 9);
   FitSettings s = parse_model_spec("auto");
-  s.threads = 2;
+  s.run.threads = 2;
   std::mutex mutex;
   std::vector<std::string> order;         // the steps as they began
   std::map<std::string, int> last, bins;  // each step's highest bin count told, and its bins
@@ -546,9 +546,9 @@ TEST(FitTable, DeterministicForAnyThreadCount) {
   Table t = make_table({4, 0.5, 0.6, 1}, 50000);
   for (const char* spec : {"vmf:3", "sh:8"}) {
     FitSettings s = parse_model_spec(spec);
-    s.threads = 1;
+    s.run.threads = 1;
     StfModel one = fit_table(t, s);
-    s.threads = 3;
+    s.run.threads = 3;
     StfModel three = fit_table(t, s);
     ASSERT_EQ(one.vmf.size(), three.vmf.size());
     for (std::size_t i = 0; i < one.vmf.size(); ++i) {

@@ -45,7 +45,7 @@ Table walked_table() {
 
 FitSettings fixed(const char* spec) {
   FitSettings s = parse_model_spec(spec);
-  s.threads = 2;
+  s.run.threads = 2;
   return s;
 }
 

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "stf/core/parallel.h"
 #include "stf/fit/config.h"
 #include "stf/model.h"
 
@@ -17,7 +18,6 @@ struct FitSettings {
   int size = 4;            // lobes (vmf) or band limit (sh)
   bool automatic = false;  // vmf:auto / sh:auto: size chosen by held-out error
   bool hemispherical = false;  // hvmf: vMF lobes times each bin's outward cosine (stf/hemisphere.h)
-  int threads = 0;         // 0: all cores; results do not depend on it
   int min_escapes = 10;    // bins with fewer escapes borrow their neighbour's model
   int alpha_degree = -1;   // sh: >= 0 replaces the bins' coefficients by a Chebyshev series in cos(alpha)
   int max_blend = StfModel::kMaxBlend;  // auto: the widest alpha blend tried (StfModel::alpha_blend)
@@ -42,9 +42,10 @@ struct FitSettings {
   // auto: whether blend widths may differ from bin to bin (StfModel::alpha_blend_width) rather
   // than one width for all.
   bool blend_by_bin = true;
-  // When set (e.g. by Ctrl-C), no further bin is started and fit_table returns early with a
-  // model that must be thrown away.
-  const std::atomic<bool>* cancel = nullptr;
+  // How the fit runs, apart from what it fits: its threads (0: all cores; results do not depend
+  // on them) and the flag (Ctrl-C) after which no further bin is started and fit_table returns
+  // early with a model that must be thrown away.
+  RunContext run;
   // Told as bins are done: the step the fit is on ("fits, size 4, half 0", "final fit", ...)
   // and how many of its bins are done. Called from the worker threads, so it must be
   // thread-safe; null: nothing is told.

@@ -10,7 +10,7 @@
 namespace stf::fit {
 
 // Set when the user interrupted: for_each_bin skipped bins, so partial results must not be used.
-inline bool cancelled(const FitSettings& s) { return s.cancel && s.cancel->load(); }
+inline bool cancelled(const FitSettings& s) { return s.run.cancelled(); }
 
 // Runs f(bin) for every bin over the settings' threads (stf/core/parallel.h), until cancelled,
 // telling the settings' progress of each bin done as part of `step`. Bins are independent, so
@@ -18,7 +18,7 @@ inline bool cancelled(const FitSettings& s) { return s.cancel && s.cancel->load(
 template <typename F>
 void for_each_bin(int bins, const FitSettings& s, const std::string& step, F f) {
   std::atomic<int> done{0};
-  parallel_for(bins, RunContext{s.threads, s.cancel}, [&](std::int64_t b, int) {
+  parallel_for(bins, s.run, [&](std::int64_t b, int) {
     f(int(b));
     if (s.progress) s.progress(step, ++done, bins);
   });

@@ -75,7 +75,7 @@ struct ToleranceFit {
 
 // `settings` gives the model kind and the sizes to try: vmf:auto / sh:auto all of
 // auto_candidates; vmf:K / sh:L those below K (L) and K (L) itself. When nothing meets the
-// tolerance the best certified fit is returned with met = false. With settings.cancel set the
+// tolerance the best certified fit is returned with met = false. With settings.run.cancel set the
 // result must be thrown away.
 ToleranceFit fit_to_tolerance(const Table& fit, const Table& heldout, double tolerance,
                               const fit::FitSettings& settings);
