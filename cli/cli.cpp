@@ -123,7 +123,7 @@ void on_signal(int signal) {
   for (auto& slot : open_temps)
     if (const char* p = slot.load()) ::unlink(p);
   if (!second) {
-    constexpr char kLine[] = "stf: error: interrupted; nothing written\n";
+    constexpr char kLine[] = "stf: error: interrupted while reading inputs; no output replaced\n";
     [[maybe_unused]] const ssize_t n = ::write(STDERR_FILENO, kLine, sizeof kLine - 1);
   }
   ::_exit(interrupted_status());

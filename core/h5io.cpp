@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <stdexcept>
+#include <string_view>
 
 namespace stf::h5 {
 
@@ -96,8 +97,12 @@ std::string MemoryFile::bytes() {
   if (H5Fget_file_image(file_.getId(), image.data(), image.size()) != size)
     throw std::runtime_error("cannot take the image of an HDF5 file in memory");
   file_.close();
-  // The image starts at the superblock; the user block it was made with comes before it.
-  image.insert(0, kUserBlockBytes, '\0');
+  // The image starts at the superblock (libhdf5 1.10 leaves the user block it was made with
+  // out); checked, so that a library that kept it would not get a second one.
+  constexpr std::string_view kSignature("\x89HDF\r\n\x1a\n", 8);
+  if (image.compare(0, kSignature.size(), kSignature) == 0) image.insert(0, kUserBlockBytes, '\0');
+  else if (image.compare(kUserBlockBytes, kSignature.size(), kSignature) != 0)
+    throw std::runtime_error("an HDF5 file image in memory has no superblock where stf expects it");
   stamp_checksum(image);
   return image;
 }

@@ -45,6 +45,15 @@ std::string singular_parts_source(const Table& t) {
 }
 
 std::string settings_error(const Table& t, const FitSettings& s) {
+  // The model must fit the limits its readers hold it to (stf/model.h): checked before the fit,
+  // not found after it.
+  if (s.kind == ModelKind::kSh) {
+    const std::vector<int> sizes = s.automatic ? auto_candidates(s.kind) : std::vector<int>{s.size};
+    const int largest = *std::max_element(sizes.begin(), sizes.end());
+    if (std::string why = model_size_error(true, t.alpha_bins, largest, sh_table_rows(largest), s.alpha_degree); !why.empty())
+      return "an SH model of band limit " + std::to_string(largest) + " over " + std::to_string(t.alpha_bins) +
+             " alpha bins is beyond what a model holds (" + why + "): use a smaller band limit or fewer alpha bins";
+  }
   if (t.halves != Halves::kEven || !s.automatic) return "";
   return "the table's weights are not whole numbers and it has no /escape/weight_half: --model auto and the "
          "auto sizes choose on held-out halves, which such a table lacks; give a fixed size (vmf:K, hvmf:K or sh:L)";

@@ -44,7 +44,7 @@ void add_directions(StfModel& m, const FitSettings& s, const SizeChoice& c, cons
     return;
   }
   m.band_limit = size;
-  m.sh_nz = std::max(32, 4 * size);
+  m.sh_nz = sh_table_rows(size);
   for (int b = 0; b < m.bins(); ++b) {
     std::vector<double> coefficients = fits.sh[std::size_t(b)];
     if (m.status[std::size_t(b)] != BinStatus::kEmpty) smooth_sh(coefficients, size, c.smoothing);

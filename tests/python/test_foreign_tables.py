@@ -298,6 +298,14 @@ class ForeignTables(unittest.TestCase):
         self.refused(["UTF-8"], "pack", self.path("own_m.h5"), "--name", "\udcff\udcfe", "-o", self.path("x.stfpack"))
         self.assertFalse(any(n.startswith("x.") for n in os.listdir(self.dir.name)))
 
+    def test_a_model_beyond_the_size_limits_is_refused_before_the_fit(self):
+        """sh:32 over 5000 alpha bins needs SH tables of 5000 * 128 * 256 cells, past the 2^27 a
+        model holds: refused at once, not after fitting."""
+        check("precompute", "--sigma-s", 2, "--sigma-a", 0.1, "--g", 0.3, "--grid", "healpix:1", "--alpha-bins", 5000,
+              "--paths", 2000, "--threads", 1, "--quiet", "-o", self.path("many_bins.h5"))
+        self.refused(["many_bins.h5", "band limit 32", "5000 alpha bins"], "fit", self.path("many_bins.h5"),
+                     "--model", "sh:32", "-o", self.path("x.h5"))
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -10,6 +10,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <exception>
 #include <functional>
 #include <mutex>
 #include <system_error>
@@ -35,7 +36,8 @@ struct RunContext {
 // Runs body(i, worker) for every item i in [0, n), worker in [0, ctx.workers(n)) naming the
 // thread (for state kept per worker), until all are done, ctx is cancelled or a body returns
 // false (bodies may return void). `tick`, when given, runs on the calling thread every
-// `tick_period` while the workers run (progress). Returns true when every item ran.
+// `tick_period` while the workers run (progress). Returns true when every item ran. An exception
+// a body throws stops the others and is rethrown here once all have stopped.
 template <typename Body>
 bool parallel_for(std::int64_t n, const RunContext& ctx, Body body, const std::function<void()>& tick = {},
                   std::chrono::milliseconds tick_period = std::chrono::milliseconds(100)) {
@@ -44,26 +46,33 @@ bool parallel_for(std::int64_t n, const RunContext& ctx, Body body, const std::f
   std::atomic<bool> stopped{false};
   std::mutex mutex;
   std::condition_variable finished;
-  int running = 0;  // guarded by `mutex`
+  int running = 0;              // guarded by `mutex`
+  std::exception_ptr failure;  // the first exception a body threw, guarded by `mutex`
   auto work = [&](int w) {
-    for (std::int64_t i; !stopped.load(std::memory_order_relaxed) && !ctx.cancelled() && (i = next.fetch_add(1)) < n;) {
-      if constexpr (std::is_void_v<decltype(body(i, w))>) body(i, w);
-      else if (!body(i, w)) stopped = true;
+    try {
+      for (std::int64_t i; !stopped.load(std::memory_order_relaxed) && !ctx.cancelled() && (i = next.fetch_add(1)) < n;) {
+        if constexpr (std::is_void_v<decltype(body(i, w))>) body(i, w);
+        else if (!body(i, w)) stopped = true;
+      }
+    } catch (...) {  // rethrown on the calling thread once every worker has stopped
+      stopped = true;
+      std::lock_guard<std::mutex> lock(mutex);
+      if (!failure) failure = std::current_exception();
     }
     std::lock_guard<std::mutex> lock(mutex);
     --running;
     finished.notify_one();
   };
   std::vector<std::thread> pool;
+  pool.reserve(std::size_t(workers));
   for (int w = 0; w < workers; ++w) {
-    std::lock_guard<std::mutex> lock(mutex);
+    std::unique_lock<std::mutex> lock(mutex);
     ++running;
     try {
       pool.emplace_back(work, w);
     } catch (const std::system_error&) {  // no thread to be had: this one works as worker w
-      mutex.unlock();
+      lock.unlock();
       work(w);
-      mutex.lock();
       break;
     }
   }
@@ -74,6 +83,7 @@ bool parallel_for(std::int64_t n, const RunContext& ctx, Body body, const std::f
       lock.lock();
     }
   for (std::thread& t : pool) t.join();
+  if (failure) std::rethrow_exception(failure);
   return !stopped && !ctx.cancelled() && next.load() >= n;
 }
 

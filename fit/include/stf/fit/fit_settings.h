@@ -78,6 +78,10 @@ inline constexpr Ablation kAblations[] = {
 // std::invalid_argument naming --ablate, what is allowed and the name it did not know.
 void ablate(FitSettings& settings, const std::string& list);
 
+// The rows of the table an SH model of this band limit is drawn from (StfModel::sh_nz): fine
+// enough for its finest detail.
+inline int sh_table_rows(int band_limit) { return band_limit * 4 > 32 ? band_limit * 4 : 32; }
+
 // Candidate sizes tried by vmf:auto and sh:auto.
 std::vector<int> auto_candidates(ModelKind kind);
 
