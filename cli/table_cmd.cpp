@@ -90,9 +90,10 @@ void run_smooth(const SmoothOptions& o) {
   AtomicOutput out(o.output, "-o", {{o.table, "the table"}});
   const Table table = read_table(o.table);
   if (std::string why = fit::settings_error(table, settings); !why.empty()) fail(o.table + ": " + why);
-  // The output copies the input's attributes: one that cannot be copied fails now, not after the fit.
-  const std::string copy_error = h5::read_file(o.table, [](H5::H5File& f) { return h5::attributes_error(f); });
-  if (!copy_error.empty()) fail(o.table + ": " + copy_error);
+  // The output copies the input's attributes: taken now, so that one which cannot be copied fails
+  // before the fit, and the input is not read a third time.
+  h5::MemoryFile attributes;
+  h5::read_file(o.table, [&](H5::H5File& f) { h5::copy_attributes(f, attributes.file()); });
   settings.run.cancel = &interrupted;
   StepStatus status("stf smooth", o.quiet);
   settings.progress = [&](const std::string& step, int done, int bins) { status.update(step, done, bins); };
@@ -103,8 +104,7 @@ void run_smooth(const SmoothOptions& o) {
   const std::vector<double> weights = measure::expected_weights(model, table);
   const std::string spec = chosen_spec(model, report);
   out.write(minimal_table_file(table, weights, [&](H5::H5File& f) {
-    const H5::H5File input = h5::open_file(o.table);
-    h5::copy_attributes(input, f);
+    h5::copy_attributes(attributes.file(), f);
     for (const char* name : {"smoothed_by", "smoothed_from"})
       if (f.attrExists(name)) f.removeAttr(name);
     h5::put_attr(f, "smoothed_by", spec);

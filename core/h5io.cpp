@@ -149,18 +149,6 @@ void copy_attributes(const H5::H5Object& from, H5::H5Object& to) {
   }
 }
 
-std::string attributes_error(const H5::H5Object& from) {
-  try {
-    MemoryFile scratch;
-    copy_attributes(from, scratch.file());
-    return "";
-  } catch (const H5::Exception& e) {
-    return std::string("its attributes cannot be copied into a new file: ") + e.getDetailMsg();
-  } catch (const std::runtime_error& e) {
-    return e.what();
-  }
-}
-
 void put_dataset(H5::Group& group, const char* name, const std::vector<hsize_t>& dims,
                  const double* data) {
   put_array(group, name, dims, data, H5::PredType::NATIVE_DOUBLE);

@@ -54,11 +54,9 @@ int get_int(const H5::H5Object& obj, const char* name, int lo = kMinInt, int hi 
 std::string get_string(const H5::H5Object& obj, const char* name);
 bool has_attr(const H5::H5Object& obj, const char* name);
 inline constexpr std::size_t kMaxStringBytes = 4096;
-// Copies every attribute of `from` (any type and shape, variable-length strings included) to `to`.
+// Copies every attribute of `from` (any type and shape, variable-length strings included) to `to`;
+// throws std::runtime_error naming one that cannot be copied (too large for a new file, say).
 void copy_attributes(const H5::H5Object& from, H5::H5Object& to);
-// Why copy_attributes could not copy `from`'s attributes into a file stf writes (one too large
-// for an attribute of stf's files, or of a type HDF5 cannot convert), or "" when it could.
-std::string attributes_error(const H5::H5Object& from);
 
 // Row-major dataset; chunked and deflated when large (tables are mostly zeros far from the
 // forward lobe).
