@@ -72,7 +72,7 @@ int main(int argc, char** argv) {
   stf::Medium m;
   m.sigma_s = 99.9, m.sigma_a = 0.1, m.g = 0.8, m.radius = 1;
   stf::render::ImageSettings s;
-  s.width = s.height = 32, s.spp = 64, s.threads = 1;
+  s.width = s.height = 32, s.spp = 64, s.run.threads = 1;
   const stf::render::Image image = stf::render::render(m, stf::render::BruteForce(m), s);
   std::printf("{\"double_collisions_per_s\": %.4g, \"float_collisions_per_s\": %.4g, \"float_over_double\": %.3f, "
               "\"tracer_collisions_per_s\": %.4g, \"collisions_double\": %ld, \"collisions_float\": %ld}\n",

@@ -36,7 +36,7 @@ Timing run_fast(const Case& c, int threads) {
   stf::Medium m{c.sigma_s, c.sigma_a, c.g, 1.0};
   stf::PrecomputeSettings s;
   s.paths = c.paths;
-  s.threads = threads;
+  s.run.threads = threads;
   auto start = Clock::now();
   auto table = stf::precompute(m, s);
   Timing t;

@@ -13,6 +13,8 @@
 #include <string_view>
 #include <vector>
 
+#include "stf/core/parallel.h"
+
 namespace CLI {
 class App;
 }
@@ -181,13 +183,18 @@ void run_python(const std::string& script, const std::vector<std::string>& args,
 class ProgressBar {
  public:
   ProgressBar(std::string label, bool quiet);
-  void update(std::int64_t done, std::int64_t total, double seconds);
+  void update(std::int64_t done, std::int64_t total);
   void finish();
+  // update() as a run's progress (stf/core/parallel.h); the run tells from one thread.
+  ProgressFn progress() {
+    return [this](std::string_view, std::int64_t done, std::int64_t total) { update(done, total); };
+  }
 
  private:
   std::string label_;
   bool enabled_;
   bool drawn_ = false;
+  const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
 };
 
 // One status line on stderr, shown only when stderr is a terminal, for work done in named steps
@@ -197,8 +204,11 @@ class StepStatus {
  public:
   StepStatus(std::string label, bool quiet);
   ~StepStatus() { finish(); }  // an error's line starts on a line of its own
-  void update(const std::string& step, std::int64_t done, std::int64_t total);
+  void update(std::string_view step, std::int64_t done, std::int64_t total);
   void finish();  // clears the line
+  ProgressFn progress() {
+    return [this](std::string_view step, std::int64_t done, std::int64_t total) { update(step, done, total); };
+  }
 
  private:
   std::string label_;

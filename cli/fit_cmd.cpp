@@ -150,7 +150,7 @@ void run_fit(const FitOptions& o, const CLI::App& cmd) {
     fail(o.table + " names no medium, and a pack needs one (tau, albedo, g): import the histogram with --sigma-s, --sigma-a and --g");
   settings.run.cancel = &interrupted;
   StepStatus status("stf fit", o.quiet);
-  settings.progress = [&](const std::string& step, int done, int bins) { status.update(step, done, bins); };
+  settings.run.progress = status.progress();
   fit::FitReport report;
   StfModel model;
   fit::Provenance provenance;

@@ -50,16 +50,16 @@ PrecomputeSettings settings_of(const PrecomputeOptions& o) {
   s.alpha_bins = int(parse_count(o.alpha_bins, "--alpha-bins", 1, kMaxAlphaBins));
   s.paths = parse_count(o.paths, "--paths", 1, std::int64_t(1) << 50);
   s.seed = parse_count(o.seed, "--seed", 0, INT64_MAX);
-  s.threads = int(parse_count(o.threads, "--threads", 0, 4096));
+  s.run.threads = int(parse_count(o.threads, "--threads", 0, 4096));
   s.max_scatter = parse_count(o.max_scatter, "--max-scatter", -1, kSafetyMaxScatter);
   if (!o.shard.empty()) parse_shard(o.shard, s);
   if (world().size > 1) {
     if (!o.shard.empty()) fail("--shard and mpirun exclude each other: under mpirun every rank is a part");
     s.part = world().rank, s.parts = world().size;
-    if (s.threads == 0) {  // the node's cores, shared by its ranks
+    if (s.run.threads == 0) {  // the node's cores, shared by its ranks
       const char* local = std::getenv("OMPI_COMM_WORLD_LOCAL_SIZE");
       int ranks_here = local ? std::max(1, std::atoi(local)) : 1;
-      s.threads = std::max(1, int(std::thread::hardware_concurrency()) / ranks_here);
+      s.run.threads = std::max(1, int(std::thread::hardware_concurrency()) / ranks_here);
     }
   }
   if (!(o.checkpoint_seconds > 0)) fail("--checkpoint-seconds must be > 0");
@@ -161,9 +161,8 @@ void run_precompute(const PrecomputeOptions& o) {
       }
     };
   ProgressBar bar("precompute", o.quiet || !world().root());
-  auto table = precompute(o.medium, s, &interrupted,
-                          [&](std::int64_t done, std::int64_t total, double seconds) { bar.update(done, total, seconds); },
-                          checkpointing);
+  s.run.cancel = &interrupted, s.run.progress = bar.progress();
+  auto table = precompute(o.medium, s, checkpointing);
   bar.finish();
   if (any_rank(!table)) {
     if (exists(checkpoint) && world().root())

@@ -165,7 +165,7 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
   s.spp = parse_count(o.spp, "--spp", 1, std::int64_t(1) << 40);
   const std::int64_t seed = parse_count(o.seed, "--seed", 0, INT64_MAX);
   s.seed = std::uint64_t(seed);
-  s.threads = int(parse_count(o.threads, "--threads", 0, 4096));
+  s.run.threads = int(parse_count(o.threads, "--threads", 0, 4096));
 
   // Every output claimed before any work; none may be the pack or another output.
   std::vector<NamedFile> keep{{o.pack, "--pack"}};
@@ -180,7 +180,7 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
   const render::ShellStrides* strided = nullptr;
   if (stf) {
     auto strides = std::make_unique<render::ShellStrides>(
-        o.medium, o.pack.empty() ? build_pack(o, s.threads, build) : read_pack_option(o.pack));
+        o.medium, o.pack.empty() ? build_pack(o, s.run.threads, build) : read_pack_option(o.pack));
     strided = strides.get();
     if (!o.pack.empty() && strides->spheres() == 0)  // most likely the pack of another medium
       fail("--pack: " + o.pack + " has no sphere of albedo " + shortest(o.medium.albedo()) + " and g " +
@@ -190,9 +190,8 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
     method = std::make_unique<render::BruteForce>(o.medium);
   }
   ProgressBar bar("render", o.quiet);
-  render::Image image = render::render(
-      o.medium, *method, s, [&](std::int64_t done, std::int64_t total, double t) { bar.update(done, total, t); },
-      &interrupted);
+  s.run.cancel = &interrupted, s.run.progress = bar.progress();
+  render::Image image = render::render(o.medium, *method, s);
   bar.finish();
   stop_if_interrupted();
   write_image(image_out, image, o, s.spp, seed);

@@ -116,8 +116,9 @@ void run_python(const std::string& script, const std::vector<std::string>& args,
 ProgressBar::ProgressBar(std::string label, bool quiet)
     : label_(std::move(label)), enabled_(!quiet && ::isatty(STDERR_FILENO)) {}
 
-void ProgressBar::update(std::int64_t done, std::int64_t total, double seconds) {
+void ProgressBar::update(std::int64_t done, std::int64_t total) {
   if (!enabled_ || total <= 0) return;
+  const double seconds = seconds_since(start_);
   const int width = 30;
   double frac = double(done) / double(total);
   int filled = int(frac * width);
@@ -139,7 +140,7 @@ void ProgressBar::finish() {
 StepStatus::StepStatus(std::string label, bool quiet)
     : label_(std::move(label)), enabled_(!quiet && ::isatty(STDERR_FILENO)) {}
 
-void StepStatus::update(const std::string& step, std::int64_t done, std::int64_t total) {
+void StepStatus::update(std::string_view step, std::int64_t done, std::int64_t total) {
   if (!enabled_) return;
   std::unique_lock<std::mutex> lock(mutex_, std::try_to_lock);
   if (!lock) return;
@@ -147,7 +148,7 @@ void StepStatus::update(const std::string& step, std::int64_t done, std::int64_t
   if (now < shown_ + 0.1 && done < total) return;
   shown_ = now;
   // \033[K clears what a longer step's line left.
-  std::fprintf(stderr, "\r\033[K%s: %s: %lld of %lld bins, %.0f s", label_.c_str(), step.c_str(), (long long)done,
+  std::fprintf(stderr, "\r\033[K%s: %.*s: %lld of %lld bins, %.0f s", label_.c_str(), int(step.size()), step.data(), (long long)done,
                (long long)total, now);
   std::fflush(stderr);
 }

@@ -96,7 +96,7 @@ void run_smooth(const SmoothOptions& o) {
   h5::read_file(o.table, [&](H5::H5File& f) { h5::copy_attributes(f, attributes.file()); });
   settings.run.cancel = &interrupted;
   StepStatus status("stf smooth", o.quiet);
-  settings.progress = [&](const std::string& step, int done, int bins) { status.update(step, done, bins); };
+  settings.run.progress = status.progress();
   fit::FitReport report;
   const StfModel model = fit::fit_table(table, settings, &report);
   status.finish();

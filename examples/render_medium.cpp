@@ -36,13 +36,10 @@ stf::Vec3 scatter(const stf::Vec3& w, double g, double u0, double u1) {
     c = (1 + g * g - s * s) / (2 * g);
   }
   c = std::fmax(-1.0, std::fmin(1.0, c));
-  stf::Vec3 b1, b2;
-  stf::orthonormal_basis(w, b1, b2);
   double sp, cp;
   stf::sincos_2pi(u1, sp, cp);
   const double s = std::sqrt(std::fmax(0.0, 1 - c * c));
-  return {c * w.x + s * (cp * b1.x + sp * b2.x), c * w.y + s * (cp * b1.y + sp * b2.y),
-          c * w.z + s * (cp * b1.z + sp * b2.z)};
+  return stf::Frame::around(w).to_world({s * cp, s * sp, c});
 }
 
 // One camera path entering at the sphere's near pole heading +z; returns the radiance it

@@ -32,7 +32,7 @@ Vec3 cell_centre(const CellQuadrature& q, std::size_t c) {
   for (int j = 0; j < q.per_cell; ++j) {
     const Vec3& p = q.point[c * q.per_cell + j];
     double w = q.weight[c * q.per_cell + j];
-    s = {s.x + w * p.x, s.y + w * p.y, s.z + w * p.z};
+    s += w * p;
   }
   return normalize(s);
 }

@@ -40,7 +40,7 @@ void em_on_cells(const std::vector<double>& counts, const std::vector<Vec3>& cen
       for (int k = 0; k < K; ++k) {
         double w = counts[c] * r[k] / norm;
         mass[k] += w;
-        sum[k] = {sum[k].x + w * centre[c].x, sum[k].y + w * centre[c].y, sum[k].z + w * centre[c].z};
+        sum[k] += w * centre[c];
       }
     }
     double total = 0;
@@ -88,7 +88,7 @@ std::vector<VmfLobe> initial_lobes(const std::vector<double>& counts, const std:
       for (int k = 1; k < K; ++k)
         if (dot(mean[k], centre[c]) > dot(mean[best], centre[c])) best = k;
       Vec3& s = sum[best];
-      s = {s.x + counts[c] * centre[c].x, s.y + counts[c] * centre[c].y, s.z + counts[c] * centre[c].z};
+      s += counts[c] * centre[c];
       mass[best] += counts[c];
     }
     double total = 0;
@@ -195,13 +195,12 @@ std::vector<VmfLobe> grow_lobes(std::vector<VmfLobe> lobes, int K) {
     // The heaviest lobe becomes two, half a standard deviation to each side of its mean, so
     // the likelihood's gradient can pull them apart.
     VmfLobe& l = *std::max_element(lobes.begin(), lobes.end(), [](const VmfLobe& a, const VmfLobe& b) { return a.weight < b.weight; });
-    Vec3 b1, b2;
-    orthonormal_basis(l.mean, b1, b2);
+    const Vec3 b1 = Frame::around(l.mean).x;
     const double offset = std::min(0.5, 0.5 / std::sqrt(std::max(l.kappa, 1e-6)));
     VmfLobe twin = l;
     l.weight *= 0.5, twin.weight = l.weight;
-    l.mean = normalize({l.mean.x + offset * b1.x, l.mean.y + offset * b1.y, l.mean.z + offset * b1.z});
-    twin.mean = normalize({twin.mean.x - offset * b1.x, twin.mean.y - offset * b1.y, twin.mean.z - offset * b1.z});
+    l.mean = normalize(l.mean + offset * b1);
+    twin.mean = normalize(twin.mean - offset * b1);
     lobes.push_back(twin);
   }
   double total = 0;

@@ -86,7 +86,7 @@ int alpha_group_size(const std::vector<double>& edges, const Table& reference) {
 
 std::vector<double> smooth_cell_probabilities(const StfModel& m, int b, const QuadratureLevels& levels, double turn) {
   if (m.kind == ModelKind::kVmf) {
-    std::vector<VmfLobe> lobes(m.vmf.begin() + std::ptrdiff_t(b) * m.lobes, m.vmf.begin() + std::ptrdiff_t(b + 1) * m.lobes);
+    std::vector<VmfLobe> lobes(m.lobes_of(b).begin(), m.lobes_of(b).end());
     for (VmfLobe& l : lobes) l.mean = turn_about_y(l.mean, turn);
     // The quadrature levels the fitter used for lobes this narrow; hemispherical lobes with the
     // outward factor's means over sub-cells, so that cells the tangent planes cut keep their share.

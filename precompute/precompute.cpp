@@ -40,7 +40,7 @@ std::optional<std::string> validate(const Medium& m, const PrecomputeSettings& s
     return "--shard " + std::to_string(s.part) + "/" + std::to_string(s.parts) + " holds no paths: a run of " +
            std::to_string(s.paths) + " paths has " + std::to_string(r.count) + " chunks, so N may be at most " +
            std::to_string(r.count);
-  if (s.threads < 0) return "--threads must be >= 0 (0: all cores), got " + std::to_string(s.threads);
+  if (s.run.threads < 0) return "--threads must be >= 0 (0: all cores), got " + std::to_string(s.run.threads);
   if (s.max_scatter < -1 || s.max_scatter > kSafetyMaxScatter)
     return "--max-scatter must be -1 (no limit) or in 0.." + std::to_string(kSafetyMaxScatter) +
            ", got " + std::to_string(s.max_scatter);
@@ -134,14 +134,13 @@ class Driver {
 // Runs the driver's chunks over the run's threads (stf/core/parallel.h), each worker walking
 // into its own chunk tally, reporting progress every 100 ms; false if a chunk failed or the run
 // was cancelled.
-bool run_workers(Driver& driver, const RunContext& run, const ProgressFn& progress,
-                 std::chrono::steady_clock::time_point start) {
+bool run_workers(Driver& driver, const RunContext& run) {
   std::vector<ChunkTally> chunks(std::size_t(run.workers(driver.chunks_to_do())));
-  const auto told = [&] { progress(driver.paths_done(), driver.total_paths(), seconds_since(start)); };
+  const auto told = [&] { run.tell("", driver.paths_done(), driver.total_paths()); };
   return parallel_for(
       driver.chunks_to_do(), run,
       [&](std::int64_t i, int worker) { return driver.walk(std::size_t(i), chunks[std::size_t(worker)], run.cancel); },
-      progress ? std::function<void()>(told) : std::function<void()>());
+      run.progress ? std::function<void()>(told) : std::function<void()>());
 }
 
 // The table of a finished run's tally (its counts moved out).
@@ -171,8 +170,7 @@ Table tally_table(Tally& tally, const Medium& medium, const PrecomputeSettings& 
 
 }  // namespace
 
-std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& s, const std::atomic<bool>* cancel,
-                                const ProgressFn& progress, const Checkpointing& checkpointing) {
+std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& s, const Checkpointing& checkpointing) {
   if (auto error = validate(medium, s)) throw std::invalid_argument(*error);
   auto start = std::chrono::steady_clock::now();
   std::unique_ptr<DirectionGrid> grid = make_grid(s.grid);
@@ -187,8 +185,8 @@ std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& 
 
   Driver driver(setup, s, checkpointing);
   const ChunkRange range = chunk_range(s);
-  if (!run_workers(driver, RunContext{s.threads, cancel}, progress, start)) return std::nullopt;
-  if (progress) progress(driver.total_paths(), driver.total_paths(), seconds_since(start));
+  if (!run_workers(driver, s.run)) return std::nullopt;
+  s.run.tell("", driver.total_paths(), driver.total_paths());
   Table table = tally_table(driver.state().tally, medium, s, range, *grid);
   table.paths = driver.total_paths();
   table.runtime_s = seconds_since(start);

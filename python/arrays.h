@@ -111,7 +111,7 @@ void in_parallel(py::ssize_t n, const py::object& threads_value, Body body) {
     const py::ssize_t m = std::min(n - start, kRound * t);
     {
       py::gil_scoped_release release;
-      parallel_for(t, RunContext{int(t)}, [&](std::int64_t k, int) { body(start + m * k / t, start + m * (k + 1) / t); });
+      parallel_for(t, RunContext{int(t), nullptr, {}}, [&](std::int64_t k, int) { body(start + m * k / t, start + m * (k + 1) / t); });
     }
     if (PyErr_CheckSignals() != 0) throw py::error_already_set();
   }

@@ -46,8 +46,7 @@ double Image::mean_radiance() const {
   return mean.empty() ? 0 : sum / double(mean.size());
 }
 
-Image render(const Medium& medium, const Method& method, const ImageSettings& s, const RenderProgress& progress,
-             const std::atomic<bool>* cancel) {
+Image render(const Medium& medium, const Method& method, const ImageSettings& s) {
   const auto start = std::chrono::steady_clock::now();
   const auto seconds = [&] { return seconds_since(start); };
   Image image;
@@ -55,23 +54,23 @@ Image render(const Medium& medium, const Method& method, const ImageSettings& s,
   const std::int64_t pixels = std::int64_t(s.width) * s.height;
   image.mean.assign(std::size_t(pixels), 0);
   image.variance_of_mean.assign(std::size_t(pixels), 0);
-  const RunContext run{s.threads, cancel};
+  const RunContext& run = s.run;
   std::vector<PathCounters> counters(std::size_t(run.workers(pixels)));  // one per worker
   std::atomic<std::int64_t> done{0};
-  const auto told = [&] { progress(done.load() * s.spp, pixels * s.spp, seconds()); };
+  const auto told = [&] { run.tell("", done.load() * s.spp, pixels * s.spp); };
   parallel_for(
       pixels, run,
       [&](std::int64_t p, int worker) {
-        const PixelResult r = render_pixel(medium, method, s, p, counters[std::size_t(worker)], cancel);
+        const PixelResult r = render_pixel(medium, method, s, p, counters[std::size_t(worker)], run.cancel);
         image.mean[std::size_t(p)] = r.mean;
         image.variance_of_mean[std::size_t(p)] = r.variance_of_mean;
         done.fetch_add(1);
       },
-      progress ? std::function<void()>(told) : std::function<void()>(), std::chrono::milliseconds(200));
+      run.progress ? std::function<void()>(told) : std::function<void()>(), std::chrono::milliseconds(200));
   for (const PathCounters& c : counters) image.collisions += c.collisions, image.strides += c.strides;  // integer sums
   image.paths = done.load() * s.spp;
   image.seconds = seconds();
-  if (progress && !run.cancelled()) progress(image.paths, pixels * s.spp, image.seconds);
+  if (!run.cancelled()) run.tell("", image.paths, pixels * s.spp);
   return image;
 }
 

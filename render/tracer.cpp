@@ -16,12 +16,9 @@ bool close(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(1.0, 
 
 // w' at polar cosine `c` (sine `s`) and azimuth 2 pi u about w.
 Vec3 turn(const Vec3& w, double c, double s, double u) {
-  Vec3 t1, t2;
-  orthonormal_basis(w, t1, t2);
   double sp, cp;
   sincos_2pi(u, sp, cp);
-  const double ct1 = s * cp, ct2 = s * sp;
-  return {c * w.x + ct1 * t1.x + ct2 * t2.x, c * w.y + ct1 * t1.y + ct2 * t2.y, c * w.z + ct1 * t1.z + ct2 * t2.z};
+  return Frame::around(w).to_world({s * cp, s * sp, c});
 }
 
 }  // namespace
@@ -32,7 +29,7 @@ CollisionWalk::CollisionWalk(const Medium& m)
 
 bool CollisionWalk::leaves_after_flight(Vec3& x, Vec3& w, double& throughput, PixelRng& rng) const {
   const double t = -std::log(rng.uniform_open0()) * inv_sigma_t_;
-  x = {x.x + t * w.x, x.y + t * w.y, x.z + t * w.z};
+  x += t * w;
   if (dot(x, x) > radius2_) return true;  // the sphere is convex: past the boundary means out
   throughput *= albedo_;
   const CosSin<double> cs = sample_hg(hg_, rng.uniform());

@@ -33,8 +33,8 @@ Table walk(const PlanEntry& e, const Settings& s, std::int64_t paths, std::int64
   ps.grid = s.grid;
   ps.alpha_bins = s.alpha_bins;
   ps.seed = seed;
-  ps.threads = threads;
-  std::optional<Table> table = precompute({e.albedo * e.tau, (1 - e.albedo) * e.tau, e.g, 1}, ps, cancel);
+  ps.run = {threads, cancel, {}};
+  std::optional<Table> table = precompute({e.albedo * e.tau, (1 - e.albedo) * e.tau, e.g, 1}, ps);
   if (!table) interrupted();
   return std::move(*table);
 }
@@ -93,7 +93,7 @@ void compute_to_tolerance(const Plan& plan, const PlanEntry& e, const fit::FitSe
 void compute(const Plan& plan, const PlanEntry& e, int threads, const std::atomic<bool>* cancel) {
   const Settings& s = plan.settings;
   fit::FitSettings fs = fit::parse_model_spec(s.model);
-  fs.run = {threads, cancel};
+  fs.run = {threads, cancel, {}};
   if (s.tolerance > 0) return compute_to_tolerance(plan, e, fs, threads, cancel);
   Table table = walk(e, s, s.paths, s.seed, threads, cancel);
   fit::FitReport report;

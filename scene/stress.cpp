@@ -41,7 +41,7 @@ StressResult run_stress_case(const StressCase& c, long paths, long max_scatter, 
   s.grid = "healpix:2";
   s.max_scatter = max_scatter;
   s.seed = 5;
-  s.threads = threads;
+  s.run.threads = threads;
   Table t = *precompute({c.albedo * c.tau, (1 - c.albedo) * c.tau, c.g, 1}, s);
   for (int h = 0; h < 2; ++h)
     for (double w : t.weight_half[h]) check(std::isfinite(w), "table", r);

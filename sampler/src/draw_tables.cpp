@@ -2,11 +2,11 @@
 
 namespace stf {
 
-DrawTables::DrawTables(const StfModel& m) {
+DrawTables::DrawTables(const StfModel& m) : lobes(m.lobes) {
   const int bins = m.bins();
   for (int b = 0; b < bins && m.kind == ModelKind::kVmf; ++b) {
     double sum = 0;
-    for (int k = 0; k < m.lobes; ++k) lobe_cdf.push_back(sum += m.vmf[std::size_t(b * m.lobes + k)].weight);
+    for (const VmfLobe& l : m.lobes_of(b)) lobe_cdf.push_back(sum += l.weight);
   }
   // Cells have equal areas, so their masses are the table values.
   const std::size_t per_bin = std::size_t(2) * m.sh_nz * m.sh_nz;

@@ -36,10 +36,10 @@ double StfModel::outward_factor(int bin, const Vec3& w) const {
 double StfModel::direction_pdf(int bin, const Vec3& w) const {
   if (kind == ModelKind::kVmf) {
     double p = 0;
+    const BinSlice<const double> norm = hemispherical ? bin_slice(lobe_norm, bin, lobes) : BinSlice<const double>();
     for (int k = 0; k < lobes; ++k) {
-      const std::size_t i = std::size_t(bin) * lobes + k;
-      const VmfLobe& l = vmf[i];
-      p += l.weight * vmf_pdf(l.kappa, dot(l.mean, w)) / (hemispherical ? lobe_norm[i] : 1.0);
+      const VmfLobe& l = lobes_of(bin)[std::size_t(k)];
+      p += l.weight * vmf_pdf(l.kappa, dot(l.mean, w)) / (hemispherical ? norm[std::size_t(k)] : 1.0);
     }
     return p * outward_factor(bin, w);
   }
@@ -54,8 +54,7 @@ namespace {
 template <typename Factor>
 double mean_under_lobe(const VmfLobe& l, Factor factor) {
   constexpr int kPanels = 8, kAzimuths = 32;
-  Vec3 b1, b2;
-  orthonormal_basis(l.mean, b1, b2);
+  const Frame frame = Frame::around(l.mean);
   double sum = 0;
   for (int p = 0; p < kPanels; ++p)
     sum += gauss8(
@@ -63,9 +62,8 @@ double mean_under_lobe(const VmfLobe& l, Factor factor) {
           const double c = sample_vmf_cos(l.kappa, u), s = std::sqrt(std::max(0.0, 1 - c * c));
           double ring = 0;
           for (int a = 0; a < kAzimuths; ++a) {
-            const double phi = 2 * kPi * (a + 0.5) / kAzimuths, x = s * std::cos(phi), y = s * std::sin(phi);
-            ring += factor(Vec3{x * b1.x + y * b2.x + c * l.mean.x, x * b1.y + y * b2.y + c * l.mean.y,
-                                x * b1.z + y * b2.z + c * l.mean.z});
+            const double phi = 2 * kPi * (a + 0.5) / kAzimuths;
+            ring += factor(frame.to_world({s * std::cos(phi), s * std::sin(phi), c}));
           }
           return ring / kAzimuths;
         },
@@ -80,8 +78,8 @@ void StfModel::rebuild_lobe_norms() {
   if (!hemispherical || kind != ModelKind::kVmf) return;
   for (int b = 0; b < bins(); ++b) {
     const OutwardBin factor(alpha_edges[std::size_t(b)], alpha_edges[std::size_t(b) + 1]);
-    VmfLobe* l = &vmf[std::size_t(b) * lobes];
-    double* z = &lobe_norm[std::size_t(b) * lobes];
+    const BinSlice<VmfLobe> l = bin_slice(vmf, b, lobes);
+    const BinSlice<double> z = bin_slice(lobe_norm, b, lobes);
     // A lobe turned (all but a millionth of it) below the bin's tangent planes holds no
     // density worth a draw that waits on it: it is dropped (its weight goes to the others) and
     // made uniform, so that even a rounding that picks it terminates; a bin left with none is
@@ -188,7 +186,7 @@ std::string lobes_error(const StfModel& m) {
   for (int b = 0; b < m.bins(); ++b) {
     double weights = 0;
     for (int k = 0; k < m.lobes; ++k) {
-      const VmfLobe& l = m.vmf[std::size_t(b) * m.lobes + k];
+      const VmfLobe& l = m.lobes_of(b)[std::size_t(k)];
       if (!finite_in(l.weight, 0, 1) || !finite_in(l.kappa, 0, kMaxKappa))
         return "vMF weight or kappa (/vmf/weight, /vmf/kappa) out of range (weight in [0, 1], kappa in [0, " +
                std::to_string(kMaxKappa) + "]; bin " + std::to_string(b) + ", lobe " + std::to_string(k) + ")";

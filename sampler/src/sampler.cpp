@@ -37,7 +37,7 @@ ShellSampler::ShellSampler(StfModel model, std::shared_ptr<const DrawTables> tab
 }
 
 double ShellSampler::lobe_pdf(const Lobe& l, const Vec3& w) const {
-  return l.norm * std::exp(l.kappa * (dot(l.mean, w) - 1));
+  return l.norm * std::exp(l.kappa * (dot(l.mean(), w) - 1));
 }
 
 int ShellSampler::alpha_bin_of(double cos_alpha) const {
@@ -50,8 +50,7 @@ int ShellSampler::alpha_bin_of(double cos_alpha) const {
 double ShellSampler::direction_pdf(int bin, const Vec3& w) const {
   if (model_.kind == ModelKind::kSh) return model_.direction_pdf(bin, w);
   double p = 0;
-  const Lobe* l = &lobes_[std::size_t(bin) * model_.lobes];
-  for (int k = 0; k < model_.lobes; ++k) p += l[k].weight * lobe_pdf(l[k], w);
+  for (const Lobe& l : bin_slice(lobes_, bin, model_.lobes)) p += l.weight * lobe_pdf(l, w);
   return model_.hemispherical ? p * tables_->outward[std::size_t(bin)](w) : p;
 }
 
@@ -59,15 +58,11 @@ int ShellSampler::sample_alpha_bin(double u, double& remainder) const { return a
 
 Vec3 ShellSampler::sample_direction(int bin, double u2, double u3) const {
   if (model_.kind == ModelKind::kVmf) {
-    // Pick a lobe by weight and reuse the rest of u2 for the lobe's own polar angle. The
-    // choice counts the running sums at or below u2, without branches, in one cache line; a
-    // lobe of zero weight is never chosen but as the last (rounding), and then is uniform.
-    const int lobes = model_.lobes;
-    const double* cdf = &tables_->lobe_cdf[std::size_t(bin) * lobes];
-    int k = 0;
-    for (int j = 0; j + 1 < lobes; ++j) k += cdf[j] <= u2;
-    const Lobe& l = lobes_[std::size_t(bin) * lobes + k];
-    const double below = k > 0 ? cdf[k - 1] : 0.0;
+    // Pick a lobe by weight and reuse the rest of u2 for the lobe's own polar angle (a lobe of
+    // zero weight, picked by rounding, is uniform).
+    const int k = tables_->pick_lobe(bin, u2);
+    const Lobe& l = bin_slice(lobes_, bin, model_.lobes)[std::size_t(k)];
+    const double below = k > 0 ? tables_->lobe_sums(bin)[std::size_t(k) - 1] : 0.0;
     double remainder = l.weight > 0 ? std::clamp((u2 - below) / l.weight, 0.0, std::nextafter(1.0, 0.0)) : 0.0;
     Vec3 w = l.direction(remainder, u3);
     if (!model_.hemispherical) return w;
@@ -163,29 +158,12 @@ double ShellSampler::smooth_pdf(int bin, double cos_alpha, const Vec3& local) co
   return point * direction;
 }
 
-namespace {
-struct Frame {
-  Vec3 x, y, z;
-  Vec3 to_world(const Vec3& v) const {
-    return {v.x * x.x + v.y * y.x + v.z * z.x, v.x * x.y + v.y * y.y + v.z * z.y, v.x * x.z + v.y * y.z + v.z * z.z};
-  }
-  Vec3 to_local(const Vec3& v) const { return {dot(v, x), dot(v, y), dot(v, z)}; }
-};
-Frame frame_around(const Vec3& n) {
-  Frame f;
-  f.z = n;
-  orthonormal_basis(n, f.x, f.y);
-  return f;
-}
-}  // namespace
-
 WorldExit ShellSampler::to_world(const Vec3& position, const Vec3& direction, double radius,
                                   const ExitSample& s) const {
-  Frame f = frame_around(direction);
-  Vec3 p = f.to_world(s.point);
+  const Frame f = Frame::around(direction);
   // The unit-sphere area measure scales by radius^2 on the sphere of that radius; a discrete
   // probability does not.
-  return {{position.x + radius * p.x, position.y + radius * p.y, position.z + radius * p.z}, f.to_world(s.direction),
+  return {position + radius * f.to_world(s.point), f.to_world(s.direction),
           s.component == kSmooth ? s.pdf / (radius * radius) : s.pdf, s.component};
 }
 
@@ -205,9 +183,8 @@ WorldExit ShellSampler::jump(const Vec3& position, const Vec3& direction, double
 
 double ShellSampler::pdf_world(const Vec3& position, const Vec3& direction, double radius, const Vec3& exit_point,
                                const Vec3& exit_direction) const {
-  Frame f = frame_around(direction);
-  Vec3 d{(exit_point.x - position.x) / radius, (exit_point.y - position.y) / radius, (exit_point.z - position.z) / radius};
-  return pdf(f.to_local(d), f.to_local(exit_direction)) / (radius * radius);
+  const Frame f = Frame::around(direction);
+  return pdf(f.to_local((exit_point - position) / radius), f.to_local(exit_direction)) / (radius * radius);
 }
 
 }  // namespace stf

@@ -66,13 +66,6 @@ int StrideForm::blend_pick(int b, double u, double v) const {
   return blend_bins[k];
 }
 
-const StrideForm::Lobe& StrideForm::lobe_pick(int bin, double v) const {
-  const double* cdf = &tables_->lobe_cdf[std::size_t(bin) * lobes_per_bin_];
-  int k = 0;
-  for (int j = 0; j + 1 < lobes_per_bin_; ++j) k += cdf[j] <= v;
-  return lobe_[std::size_t(bin) * lobes_per_bin_ + k];
-}
-
 Vec3 StrideForm::sh_direction(int bin, double u, double v) const {
   double in_cell;
   const int cell = tables_->cells[std::size_t(bin)].sample(u, in_cell);

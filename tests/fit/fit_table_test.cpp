@@ -268,9 +268,10 @@ TEST(FitTable, ProgressTellsEveryStepToItsLastBin) {
   s.run.threads = 2;
   std::mutex mutex;
   std::vector<std::string> order;         // the steps as they began
-  std::map<std::string, int> last, bins;  // each step's highest bin count told, and its bins
-  s.progress = [&](const std::string& step, int done, int n) {
+  std::map<std::string, std::int64_t> last, bins;  // each step's highest bin count told, and its bins
+  s.run.progress = [&](std::string_view told, std::int64_t done, std::int64_t n) {
     std::lock_guard<std::mutex> lock(mutex);
+    const std::string step(told);
     if (!last.count(step)) order.push_back(step);
     last[step] = std::max(last[step], done), bins[step] = n;
   };
@@ -283,7 +284,7 @@ TEST(FitTable, ProgressTellsEveryStepToItsLastBin) {
   EXPECT_EQ(order[1], "held-out scores, size 1");
   EXPECT_EQ(order[order.size() - 2], final_fit);
   EXPECT_EQ(order.back(), "diagnostics");
-  s.progress = nullptr;
+  s.run.progress = nullptr;
   const StfModel untold = fit_table(t, s);
   ASSERT_EQ(told.vmf.size(), untold.vmf.size());
   for (std::size_t i = 0; i < told.vmf.size(); ++i) {

@@ -340,7 +340,7 @@ TEST(Walk, SameSeedSameTableForAnyThreadCount) {
   s.seed = 77;
   std::vector<Table> tables;
   for (int threads : {1, 2, 3, 5}) {
-    s.threads = threads;
+    s.run.threads = threads;
     tables.push_back(run({5, 0.5, 0.6, 1}, s));
   }
   for (std::size_t i = 1; i < tables.size(); ++i) {
@@ -359,7 +359,8 @@ TEST(Walk, CancelStopsEarly) {
   std::atomic<bool> cancel{true};
   PrecomputeSettings s;
   s.paths = 100'000'000;
-  EXPECT_FALSE(precompute({100, 0, 0, 1}, s, &cancel).has_value());
+  s.run.cancel = &cancel;
+  EXPECT_FALSE(precompute({100, 0, 0, 1}, s).has_value());
 }
 
 TEST(Walk, ValidateNamesTheOption) {

@@ -67,9 +67,9 @@ TEST(Render, SameImageForAnyThreadCount) {
   ImageSettings s;
   s.width = 20, s.height = 14;
   s.spp = 8;
-  s.threads = 1;
+  s.run.threads = 1;
   const Image one = render(m, brute, s);
-  s.threads = 3;
+  s.run.threads = 3;
   const Image three = render(m, brute, s);
   EXPECT_EQ(one.mean, three.mean);
   EXPECT_EQ(one.variance_of_mean, three.variance_of_mean);
@@ -99,7 +99,9 @@ TEST(Render, CancelStopsEarly) {
   s.spp = 1000000;
   std::atomic<bool> cancel{false};
   int calls = 0;
-  const Image image = render(m, brute, s, [&](std::int64_t, std::int64_t, double) { ++calls, cancel = true; }, &cancel);
+  s.run.cancel = &cancel;
+  s.run.progress = [&](std::string_view, std::int64_t, std::int64_t) { ++calls, cancel = true; };
+  const Image image = render(m, brute, s);
   EXPECT_TRUE(cancel.load());
   EXPECT_LT(image.paths, std::int64_t(s.width) * s.height * s.spp);
 }

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -18,6 +19,26 @@
 namespace stf {
 
 enum class ModelKind { kVmf, kSh };
+
+// Bin b's `per` entries of an array laid out [bins * per] (the sampler's headers stay C++17,
+// so no std::span).
+template <typename T>
+struct BinSlice {
+  T* first = nullptr;
+  std::size_t count = 0;
+  T* begin() const { return first; }
+  T* end() const { return first + count; }
+  std::size_t size() const { return count; }
+  T& operator[](std::size_t k) const { return first[k]; }
+};
+template <typename T>
+BinSlice<T> bin_slice(std::vector<T>& v, int b, int per) {
+  return {v.data() + std::size_t(b) * std::size_t(per), std::size_t(per)};
+}
+template <typename T>
+BinSlice<const T> bin_slice(const std::vector<T>& v, int b, int per) {
+  return {v.data() + std::size_t(b) * std::size_t(per), std::size_t(per)};
+}
 
 // How the direction model of one alpha bin came about.
 enum class BinStatus : std::int32_t {
@@ -81,6 +102,7 @@ struct StfModel {
   // The family's name in model specs: "vmf", "hvmf" or "sh".
   const char* family() const { return kind == ModelKind::kSh ? "sh" : hemispherical ? "hvmf" : "vmf"; }
   std::vector<double> lobe_norm;  // [bins * lobes]
+  BinSlice<const VmfLobe> lobes_of(int b) const { return bin_slice(vmf, b, lobes); }
 
   // kSh: real SH coefficients per bin, [bins * (band_limit + 1)^2], windowed and smoothed.
   // The density used is max(SH, 0) tabulated at the centres of an equal-area (z, phi) grid

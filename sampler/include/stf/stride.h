@@ -80,17 +80,14 @@ class StrideForm {
   // `radius` around it; `uniform()` returns independent uniforms in [0, 1).
   template <typename Uniform>
   Stride jump(const Vec3& position, const Vec3& direction, double radius, Uniform&& uniform) const {
-    Frame f;
-    f.z = direction;
-    orthonormal_basis(direction, f.x, f.y);
-    Stride s = draw(f, uniform);
-    s.point = {position.x + radius * s.point.x, position.y + radius * s.point.y, position.z + radius * s.point.z};
+    Stride s = draw(Frame::around(direction), uniform);
+    s.point = position + radius * s.point;
     return s;
   }
   // The same draw in the local frame (start at the centre of the unit sphere heading +z).
   template <typename Uniform>
   Stride local(Uniform&& uniform) const {
-    return draw(Frame{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, uniform);
+    return draw(Frame(), uniform);
   }
 
   double escape_probability() const { return escape_probability_; }
@@ -106,12 +103,6 @@ class StrideForm {
     int blend;           // blend width
   };
   using Lobe = VmfFrame;
-  struct Frame {
-    Vec3 x, y, z;
-    Vec3 operator()(const Vec3& v) const {
-      return {v.x * x.x + v.y * y.x + v.z * z.x, v.x * x.y + v.y * y.y + v.z * z.y, v.x * x.z + v.y * y.z + v.z * z.z};
-    }
-  };
   // An exit point of bin b at the remainder r of the alias draw: cos and sin of alpha, the
   // area fraction u and the angle from the bin's middle.
   struct ExitAngle {
@@ -120,7 +111,6 @@ class StrideForm {
   ExitAngle exit_angle(const Bin& bin, double r) const;
   // The blended bin whose density draws the direction at area fraction u of bin b.
   int blend_pick(int b, double u, double v) const;
-  const Lobe& lobe_pick(int bin, double v) const;
   Vec3 sh_direction(int bin, double u, double v) const;
   template <typename Uniform>
   Vec3 direction(int bin, Uniform& uniform) const;
@@ -146,7 +136,7 @@ Vec3 StrideForm::direction(int bin, Uniform& uniform) const {
     const double u = uniform();
     return sh_direction(bin, u, uniform());
   }
-  const Lobe& l = lobe_pick(bin, uniform());
+  const Lobe& l = bin_slice(lobe_, bin, lobes_per_bin_)[std::size_t(tables_->pick_lobe(bin, uniform()))];
   if (tables_->outward.empty()) {
     const double u = uniform();
     return l.direction(u, uniform());
@@ -167,7 +157,7 @@ Stride StrideForm::draw(const Frame& f, Uniform& uniform) const {
   if (outcome > bins_) {
     const double u1 = uniform(), u2 = uniform();
     const Stride s = once_scattered(r, u1, u2, uniform());
-    return {f(s.point), f(s.direction), s.component};
+    return {f.to_world(s.point), f.to_world(s.direction), s.component};
   }
   const Bin& bin = bin_[std::size_t(outcome)];
   const ExitAngle a = exit_angle(bin, r);
@@ -178,14 +168,11 @@ Stride StrideForm::draw(const Frame& f, Uniform& uniform) const {
   if (turns_) {
     double st, ct;
     sincos_angle(bin_[std::size_t(j)].turn * (a.from_middle + bin.middle - bin_[std::size_t(j)].middle), st, ct);
-    w = {ct * w.x + st * w.z, w.y, ct * w.z - st * w.x};
+    w = {ct * w.x + st * w.z, w.y, ct * w.z - st * w.x};  // turn_about_y, with sin and cos at hand
   }
-  const Vec3 e1{cb * f.x.x + sb * f.y.x, cb * f.x.y + sb * f.y.y, cb * f.x.z + sb * f.y.z};
-  const Vec3 e2{cb * f.y.x - sb * f.x.x, cb * f.y.y - sb * f.x.y, cb * f.y.z - sb * f.x.z};
-  return {{a.sin_alpha * e1.x + a.cos_alpha * f.z.x, a.sin_alpha * e1.y + a.cos_alpha * f.z.y,
-           a.sin_alpha * e1.z + a.cos_alpha * f.z.z},
-          {w.x * e1.x + w.y * e2.x + w.z * f.z.x, w.x * e1.y + w.y * e2.y + w.z * f.z.y, w.x * e1.z + w.y * e2.z + w.z * f.z.z},
-          kSmooth};
+  // The frame turned by the azimuth about its z.
+  const Frame turned{cb * f.x + sb * f.y, cb * f.y - sb * f.x, f.z};
+  return {a.sin_alpha * turned.x + a.cos_alpha * turned.z, turned.to_world(w), kSmooth};
 }
 
 }  // namespace stf

@@ -31,13 +31,6 @@ inline T vmf_pdf(const T& kappa, const T& c) {
   return norm / T(2 * kPi) * exp(kappa * (c - T(1)));
 }
 
-// Unit vectors completing `n` to a right-handed orthonormal frame (Duff et al. 2017).
-inline void orthonormal_basis(const Vec3& n, Vec3& b1, Vec3& b2) {
-  double sign = std::copysign(1.0, n.z), a = -1 / (sign + n.z), b = n.x * n.y * a;
-  b1 = {1 + sign * n.x * n.x * a, sign * b, -sign * n.x};
-  b2 = {b, sign + n.y * n.y * a, -n.y};
-}
-
 // cos(angle to the mean) of a vMF sample from u in [0, 1), by the stable inversion
 // 1 + log(u + (1 - u) e^{-2 kappa}) / kappa (W. Jakob 2012), written with log1p and expm1 so
 // that kappa -> 0 tends to the uniform 2u - 1 and kappa ~ 1e7 does not underflow to -inf.
@@ -49,12 +42,11 @@ inline double sample_vmf_cos(double kappa, double u) {
 
 // A lobe made for drawing: its frame and the constants of its quantile, computed once.
 struct VmfFrame {
-  Vec3 mean, b1, b2;  // (b1, b2, mean) orthonormal
+  Frame frame;  // z is the mean
   double kappa = 0, expm1_2k = 0;
   VmfFrame() = default;
-  explicit VmfFrame(const VmfLobe& l) : mean(l.mean), kappa(l.kappa), expm1_2k(std::expm1(-2 * l.kappa)) {
-    orthonormal_basis(l.mean, b1, b2);
-  }
+  explicit VmfFrame(const VmfLobe& l) : frame(Frame::around(l.mean)), kappa(l.kappa), expm1_2k(std::expm1(-2 * l.kappa)) {}
+  const Vec3& mean() const { return frame.z; }
   // The direction at quantile u of cos(theta) and azimuth 2 pi v: sample_vmf_cos's stable
   // inversion with expm1(-2 kappa) cached, and log for kappa >= 1, where 1 + x loses nothing
   // that matters (an absolute 1e-16 / kappa in c) and log is several times cheaper than log1p.
@@ -64,8 +56,7 @@ struct VmfFrame {
     c = std::clamp(c, -1.0, 1.0);
     double s = std::sqrt(std::max(0.0, 1 - c * c)), sp, cp;
     sincos_2pi(v, sp, cp);
-    const double x = s * cp, y = s * sp;  // unit to rounding
-    return {x * b1.x + y * b2.x + c * mean.x, x * b1.y + y * b2.y + c * mean.y, x * b1.z + y * b2.z + c * mean.z};
+    return frame.to_world({s * cp, s * sp, c});  // unit to rounding
   }
 };
 
@@ -73,11 +64,7 @@ struct VmfFrame {
 inline Vec3 sample_vmf(const VmfLobe& lobe, double u0, double u1) {
   double c = sample_vmf_cos(lobe.kappa, u0), s = std::sqrt(std::max(0.0, 1 - c * c));
   double phi = 2 * kPi * u1;
-  Vec3 b1, b2;
-  orthonormal_basis(lobe.mean, b1, b2);
-  double x = s * std::cos(phi), y = s * std::sin(phi);
-  return normalize({x * b1.x + y * b2.x + c * lobe.mean.x, x * b1.y + y * b2.y + c * lobe.mean.y,
-                    x * b1.z + y * b2.z + c * lobe.mean.z});
+  return normalize(Frame::around(lobe.mean).to_world({s * std::cos(phi), s * std::sin(phi), c}));
 }
 
 }  // namespace stf

@@ -13,6 +13,7 @@
 #include <exception>
 #include <functional>
 #include <mutex>
+#include <string_view>
 #include <system_error>
 #include <thread>
 #include <type_traits>
@@ -20,12 +21,23 @@
 
 namespace stf {
 
-// How a long run runs: on how many threads (0: all cores) and what cancels it (Ctrl-C).
+// Told how far a run is: `done` of `total` units of the step named `step` (the fit's "final
+// fit", ...; "" for a run of one step).
+using ProgressFn = std::function<void(std::string_view step, std::int64_t done, std::int64_t total)>;
+
+// How a long run runs, apart from what it computes: on how many threads (0: all cores; results
+// do not depend on them), what cancels it (Ctrl-C: no further item is started, and the run's
+// partial result must be thrown away) and whom it tells of its progress (a worker thread may
+// tell, so `progress` must be thread-safe; null: nobody).
 struct RunContext {
   int threads = 0;
   const std::atomic<bool>* cancel = nullptr;
+  ProgressFn progress;
 
   bool cancelled() const { return cancel && cancel->load(std::memory_order_relaxed); }
+  void tell(std::string_view step, std::int64_t done, std::int64_t total) const {
+    if (progress) progress(step, done, total);
+  }
   // The workers for n items: the threads asked for (all cores for 0), at most n, at least 1.
   int workers(std::int64_t n) const {
     const int asked = threads > 0 ? threads : int(std::max(1u, std::thread::hardware_concurrency()));

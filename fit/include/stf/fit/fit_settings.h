@@ -42,14 +42,10 @@ struct FitSettings {
   // auto: whether blend widths may differ from bin to bin (StfModel::alpha_blend_width) rather
   // than one width for all.
   bool blend_by_bin = true;
-  // How the fit runs, apart from what it fits: its threads (0: all cores; results do not depend
-  // on them) and the flag (Ctrl-C) after which no further bin is started and fit_table returns
-  // early with a model that must be thrown away.
+  // How the fit runs: its threads, the flag after which fit_table returns early with a model
+  // that must be thrown away, and whom it tells, as bins are done, the step it is on ("fits,
+  // size 4, half 0", "final fit", ...) and how many of its bins are done.
   RunContext run;
-  // Told as bins are done: the step the fit is on ("fits, size 4, half 0", "final fit", ...)
-  // and how many of its bins are done. Called from the worker threads, so it must be
-  // thread-safe; null: nothing is told.
-  std::function<void(const std::string& step, int done, int bins)> progress;
 };
 
 // Parses "auto" (what the project recommends: hvmf:auto), "vmf:K", "vmf:auto", "hvmf:K",

@@ -20,7 +20,7 @@ void for_each_bin(int bins, const FitSettings& s, const std::string& step, F f) 
   std::atomic<int> done{0};
   parallel_for(bins, s.run, [&](std::int64_t b, int) {
     f(int(b));
-    if (s.progress) s.progress(step, ++done, bins);
+    s.run.tell(step, ++done, bins);
   });
 }
 

@@ -8,6 +8,7 @@
 #include <vector>
 #include <string>
 
+#include "stf/core/parallel.h"
 #include "stf/core/table.h"
 #include "stf/precompute/walk.h"
 
@@ -27,11 +28,11 @@ struct PrecomputeSettings {
   std::string grid = "healpix:16";
   std::int64_t paths = 1'000'000;
   std::int64_t seed = 1;
-  int threads = 0;                // 0: all cores
   std::int64_t max_scatter = -1;  // -1: no limit but the safety cap
   // One part of the run (a shard, an MPI rank): part `part` of `parts` equal ranges of the
   // run's deterministic chunk stream. The parts of a run sum to exactly the whole run's table.
   int part = 0, parts = 1;
+  RunContext run;  // threads, cancel, progress in paths (from the launching thread, every 100 ms)
 };
 
 // The run's chunks [first, last) that part `part` of `parts` walks.
@@ -53,17 +54,13 @@ struct Checkpointing {
   double seconds = 30;
 };
 
-// Called from the launching thread about every 100 ms with the paths finished so far.
-using ProgressFn = std::function<void(std::int64_t done, std::int64_t total, double seconds)>;
-
 // Checks a medium and settings; returns a message naming the offending option and what is
 // allowed, or nothing when they are valid.
 std::optional<std::string> validate(const Medium& medium, const PrecomputeSettings& settings);
 
-// Runs the walk (of the settings' part of the run). Returns nothing when `cancel` was set
-// before it finished.
+// Runs the walk (of the settings' part of the run). Returns nothing when settings.run was
+// cancelled before it finished.
 std::optional<Table> precompute(const Medium& medium, const PrecomputeSettings& settings,
-                                const std::atomic<bool>* cancel = nullptr,
-                                const ProgressFn& progress = {}, const Checkpointing& checkpointing = {});
+                                const Checkpointing& checkpointing = {});
 
 }  // namespace stf

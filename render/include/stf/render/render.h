@@ -7,6 +7,7 @@
 #include <functional>
 #include <vector>
 
+#include "stf/core/parallel.h"
 #include "stf/render/render_scene.h"
 #include "stf/render/tracer.h"
 
@@ -16,7 +17,7 @@ struct ImageSettings {
   int width = 64, height = 64;
   std::int64_t spp = 16;  // samples (camera paths) per pixel
   std::uint64_t seed = 1;
-  int threads = 0;  // 0: all cores
+  RunContext run;  // threads, cancel (then the image is incomplete), progress in paths
 };
 
 struct Image {
@@ -28,12 +29,8 @@ struct Image {
   double mean_radiance() const;
 };
 
-// (paths done, paths in all, seconds so far): called from one worker thread at a time, at
-// most five times a second.
-using RenderProgress = std::function<void(std::int64_t, std::int64_t, double)>;
-
-// Renders until done or `cancel` is set (then the image is incomplete: check the flag).
-Image render(const Medium& medium, const Method& method, const ImageSettings& settings,
-             const RenderProgress& progress = {}, const std::atomic<bool>* cancel = nullptr);
+// Renders until done or settings.run is cancelled (then the image is incomplete: check the
+// flag), telling its progress in paths five times a second.
+Image render(const Medium& medium, const Method& method, const ImageSettings& settings);
 
 }  // namespace stf::render

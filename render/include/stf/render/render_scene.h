@@ -47,7 +47,7 @@ inline bool enter_sphere(const Ray& ray, double radius, Vec3& entry) {
   const double disc = b * b - c;
   if (disc <= 0 || b >= 0) return false;
   const double t = -b - std::sqrt(disc);
-  entry = {o.x + t * ray.direction.x, o.y + t * ray.direction.y, o.z + t * ray.direction.z};
+  entry = o + t * ray.direction;
   return true;
 }
 
