@@ -15,7 +15,7 @@
 #include "cli.h"
 #include "stf/core/h5io.h"
 #include "stf/scene/plan.h"
-#include "stf/render/png.h"
+#include "stf/render/image_file.h"
 #include "stf/precompute/precompute.h"
 #include "stf/render/render.h"
 #include "stf/render/render_scene.h"
@@ -28,8 +28,8 @@ namespace {
 struct RenderOptions {
   Medium medium;
   std::string width = "64", height = "64", spp, seed = "1", threads = "0";
-  std::string method, pack, cache, output, png, json;
-  double tolerance = 0.02;
+  std::string method, pack, cache, output, exr, png, json;
+  double tolerance = 0.02, exposure = 0;
   bool quiet = false;
 };
 
@@ -127,7 +127,7 @@ void write_image(AtomicOutput& out, const render::Image& image, const RenderOpti
     h5::put_dataset(g, "mean", dims, image.mean.data());
     h5::put_dataset(g, "variance_of_mean", dims, image.variance_of_mean.data());
   }
-  out.write(memory.bytes());
+  out.stage(memory.bytes());
 }
 
 std::string shortest(double x) {
@@ -159,6 +159,7 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
   if (cmd.count("--pack") && cmd.count("--tolerance"))
     fail("--pack and --tolerance exclude each other: --tolerance builds the pack");
   if (!(o.tolerance > 0 && o.tolerance < 1)) fail("--tolerance must be in (0, 1), got " + std::to_string(o.tolerance));
+  if (!std::isfinite(o.exposure)) fail("--exposure must be a finite number of stops");
   render::ImageSettings s;
   s.width = int(parse_count(o.width, "--width", 1, 8192));
   s.height = int(parse_count(o.height, "--height", 1, 8192));
@@ -171,7 +172,8 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
   std::vector<NamedFile> keep{{o.pack, "--pack"}};
   AtomicOutput image_out(o.output, "-o", keep);
   keep.push_back(image_out.named());
-  std::optional<AtomicOutput> png_out, json_out;
+  std::optional<AtomicOutput> exr_out, png_out, json_out;
+  if (!o.exr.empty()) exr_out.emplace(o.exr, "--exr", keep), keep.push_back(exr_out->named());
   if (!o.png.empty()) png_out.emplace(o.png, "--png", keep), keep.push_back(png_out->named());
   if (!o.json.empty()) json_out.emplace(o.json, "--json", keep);
 
@@ -195,8 +197,12 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
   bar.finish();
   stop_if_interrupted();
   write_image(image_out, image, o, s.spp, seed);
-  if (png_out) write_file(*png_out, render::encode_png(render::tone_map(image.mean), image.width, image.height));
-  if (json_out) write_file(*json_out, stats_json(image, build, strided));
+  const render::Radiance radiance{image.mean, image.width, image.height, 1};
+  if (exr_out) render::write_exr(exr_out->temp_path(), radiance);
+  if (png_out) render::write_png(png_out->temp_path(), radiance, o.exposure);
+  if (json_out) json_out->stage(stats_json(image, build, strided));
+  const auto held = [](std::optional<AtomicOutput>& out) { return out ? &*out : nullptr; };
+  commit_all({&image_out, held(exr_out), held(png_out), held(json_out)});
   if (!o.quiet)
     std::fprintf(stderr,
                  "stf render: %s, %lld paths in %.3g s (%.3g collisions, %.3g strides per path), mean radiance %.6g "
@@ -228,7 +234,11 @@ void add_render_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--threads", o->threads, "Worker threads (0: all cores)")->capture_default_str();
   cmd->add_option("-o,--output", o->output, "Output image (HDF5: /image/mean, /image/variance_of_mean)")->required();
-  cmd->add_option("--png", o->png, "Also write the image tone-mapped as PNG");
+  cmd->add_option("--exr", o->exr, "Also write the image as linear RGB OpenEXR");
+  cmd->add_option("--png", o->png, "Also write the image as sRGB PNG, through a filmic tone curve");
+  cmd->add_option("--exposure", o->exposure, "Exposure of the PNG in stops (radiance times 2^stops)")
+      ->check(CLI::Range(-30.0, 30.0))
+      ->capture_default_str();
   cmd->add_option("--json", o->json, "Write run statistics (seconds, collisions, strides) as JSON");
   cmd->add_flag("--quiet", o->quiet, "No progress bar and no summary line");
   cmd->callback([o, cmd] { run_render(*o, *cmd); });

@@ -145,12 +145,16 @@ TEST_F(Render, SameSeedSameImageForOneAndThreeThreads) {
   }
 }
 
-// The image layout of docs/formats.md and a PNG of the stated size.
-TEST_F(Render, WritesTheContractLayoutAndAPng) {
+// The image layout of docs/formats.md, an OpenEXR file and a PNG of the stated size.
+TEST_F(Render, WritesTheContractLayoutAndImages) {
   Result r = stf("render --sigma-s 7.92 --sigma-a 0.08 --g 0.5 --width 32 --height 20 --spp 4 --seed 3 --method brute "
                  "--quiet -o " + out("i.h5") +
-                 " --png " + out("i.png"));
+                 " --png " + out("i.png") + " --exr " + out("i.exr") + " --exposure -1");
   ASSERT_EQ(r.status, 0) << r.err;
+  std::ifstream exr(out("i.exr"), std::ios::binary);
+  char magic[4] = {};
+  exr.read(magic, 4);
+  EXPECT_EQ(std::string(magic, 4), std::string("\x76\x2f\x31\x01", 4));  // OpenEXR
   H5::H5File f(out("i.h5"), H5F_ACC_RDONLY);
   EXPECT_EQ(stf::h5::dataset_shape(f, "/image/mean"), (std::vector<hsize_t>{20, 32}));
   EXPECT_EQ(stf::h5::dataset_shape(f, "/image/variance_of_mean"), (std::vector<hsize_t>{20, 32}));
@@ -189,11 +193,15 @@ TEST_F(Render, BadInputIsOneLineAndNoFile) {
       {ok + "--method stf --pack " + out("missing.stfpack"), "missing.stfpack"},
       {ok + "--method stf --tolerance -1", "tolerance"},
       {ok + "--method brute --threads -2", "threads"},
+      {ok + "--method brute --exposure nan", "--exposure"},
+      {ok + "--method brute --exposure 99", "--exposure"},
+      {ok + "--method brute --exr /nonexistent-folder/i.exr", "--exr"},
   };
   for (const auto& [args, names] : cases) {
     expect_one_line(stf(args + " -o " + out("i.h5") + " --png " + out("i.png")), names, args);
     EXPECT_FALSE(fs::exists(out("i.h5"))) << args;
     EXPECT_FALSE(fs::exists(out("i.png"))) << args;
+    EXPECT_FALSE(fs::exists(out("i.exr"))) << args;
   }
   // A pack without this medium is refused, not rendered without strides.
   expect_one_line(stf("render --sigma-s 2 --sigma-a 0.1 --g 0.3 --spp 4 --method stf --pack " + pack().string() +
