@@ -60,9 +60,10 @@ Vec3 ShellSampler::sample_direction(int bin, double u2, double u3) const {
   if (model_.kind == ModelKind::kVmf) {
     // Pick a lobe by weight and reuse the rest of u2 for the lobe's own polar angle (a lobe of
     // zero weight, picked by rounding, is uniform).
-    const int k = tables_->pick_lobe(bin, u2);
+    const BinSlice<const double> sums = tables_->lobe_sums(bin);
+    const int k = pick_lobe(sums.begin(), model_.lobes, u2);
     const Lobe& l = bin_slice(lobes_, bin, model_.lobes)[std::size_t(k)];
-    const double below = k > 0 ? tables_->lobe_sums(bin)[std::size_t(k) - 1] : 0.0;
+    const double below = k > 0 ? sums[std::size_t(k) - 1] : 0.0;
     double remainder = l.weight > 0 ? std::clamp((u2 - below) / l.weight, 0.0, std::nextafter(1.0, 0.0)) : 0.0;
     Vec3 w = l.direction(remainder, u3);
     if (!model_.hemispherical) return w;
