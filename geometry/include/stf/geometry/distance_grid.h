@@ -1,0 +1,43 @@
+// A precomputed lower bound of the distance to a scene's boundary: the exact distance at the
+// centres of a regular grid over a region, and at any point x of cell c the bound
+// d(c) - |x - c|, which never exceeds d(x) (the distance is 1-Lipschitz). One load and a square
+// root per query, against a BVH search for the exact distance.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "stf/core/parallel.h"
+#include "stf/geometry/boundary.h"
+
+namespace stf::geometry {
+
+class DistanceGrid {
+ public:
+  // A grid over `region` with `cells` cells along its largest side (cubic cells), the distances
+  // from `boundary`. Throws std::invalid_argument for cells outside [1, 1024].
+  DistanceGrid(const Boundary& boundary, const Bounds& region, int cells, const RunContext& run = {});
+
+  // A lower bound of the distance from x to the boundary (0 far outside the region).
+  double lower_bound(const Vec3& x) const {
+    const double fx = (x.x - origin_.x) * inv_cell_, fy = (x.y - origin_.y) * inv_cell_, fz = (x.z - origin_.z) * inv_cell_;
+    if (!(fx >= 0 && fy >= 0 && fz >= 0 && fx < n_[0] && fy < n_[1] && fz < n_[2])) return 0;
+    const int i = int(fx), j = int(fy), k = int(fz);
+    const Vec3 centre = origin_ + cell_ * Vec3{i + 0.5, j + 0.5, k + 0.5};
+    const double d = double(distance_[(std::size_t(k) * std::size_t(n_[1]) + std::size_t(j)) * std::size_t(n_[0]) + std::size_t(i)]);
+    return std::max(0.0, d - length(x - centre) - slack_);
+  }
+
+  std::size_t bytes() const { return distance_.size() * sizeof(float); }
+  double cell() const { return cell_; }
+
+ private:
+  Vec3 origin_;
+  double cell_ = 0, inv_cell_ = 0, slack_ = 0;
+  int n_[3] = {0, 0, 0};
+  std::vector<float> distance_;  // at cell centres, rounded down, [z][y][x]
+};
+
+}  // namespace stf::geometry

@@ -1,0 +1,176 @@
+#include "stf/geometry/mesh.h"
+
+#include <fmt/format.h>
+#include <tiny_obj_loader.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+#include <unordered_map>
+
+namespace stf::geometry {
+
+namespace {
+
+// Each coordinate rounded to float through a volatile: GCC 12 (-O2 and up, with its SLP
+// vectoriser) drops a double -> float -> double round trip that it pairs into one vector, and
+// placed() then left x and y unrounded.
+double at_float_precision(double x) {
+  volatile float f = float(x);
+  return f;
+}
+Vec3 at_float_precision(const Vec3& v) { return {at_float_precision(v.x), at_float_precision(v.y), at_float_precision(v.z)}; }
+
+// Joins vertices at the same position (an OBJ may repeat a position per face or per texture
+// seam) and renumbers the triangles.
+TriangleMesh welded(const TriangleMesh& mesh) {
+  TriangleMesh out;
+  std::map<std::array<double, 3>, std::uint32_t> index;
+  std::vector<std::uint32_t> renumber(mesh.vertices.size());
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    const Vec3& v = mesh.vertices[i];
+    auto [it, added] = index.try_emplace({v.x, v.y, v.z}, std::uint32_t(out.vertices.size()));
+    if (added) out.vertices.push_back(v);
+    renumber[i] = it->second;
+  }
+  for (const auto& t : mesh.triangles) out.triangles.push_back({renumber[t[0]], renumber[t[1]], renumber[t[2]]});
+  return out;
+}
+
+std::string where(const Vec3& v) { return fmt::format("({:g}, {:g}, {:g})", v.x, v.y, v.z); }
+
+std::string vertex_error(const TriangleMesh& mesh) {
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    const Vec3& v = mesh.vertices[i];
+    if (!(std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z)))
+      return fmt::format("vertex {} is not finite", i + 1);
+  }
+  for (std::size_t k = 0; k < mesh.triangles.size(); ++k)
+    for (std::uint32_t i : mesh.triangles[k])
+      if (i >= mesh.vertices.size()) return fmt::format("triangle {} names vertex {}, of {}", k + 1, i + 1, mesh.vertices.size());
+  return "";
+}
+
+// A triangle is degenerate when a vertex repeats or its area is below 1e-12 of its edges'
+// squared lengths (its largest angle within 1e-12 of 180 degrees).
+std::string degenerate_error(const TriangleMesh& mesh) {
+  for (std::size_t k = 0; k < mesh.triangles.size(); ++k) {
+    const auto& t = mesh.triangles[k];
+    const Vec3 &a = mesh.vertices[t[0]], &b = mesh.vertices[t[1]], &c = mesh.vertices[t[2]];
+    const double twice_area = length(cross(b - a, c - a));
+    const double edges = dot(b - a, b - a) + dot(c - b, c - b) + dot(a - c, a - c);
+    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0] || !(twice_area > 1e-12 * edges))
+      return fmt::format("triangle {} (at {}) is degenerate", k + 1, where(a));
+  }
+  return "";
+}
+
+std::uint64_t edge_key(std::uint32_t from, std::uint32_t to) { return (std::uint64_t(from) << 32) | to; }
+
+// Every edge once each way: in exactly two triangles, which agree on the orientation.
+std::string edge_error(const TriangleMesh& mesh) {
+  std::unordered_map<std::uint64_t, std::size_t> owner;  // directed edge -> its triangle
+  owner.reserve(mesh.triangles.size() * 3);
+  for (std::size_t k = 0; k < mesh.triangles.size(); ++k)
+    for (int e = 0; e < 3; ++e) {
+      const std::uint32_t a = mesh.triangles[k][std::size_t(e)], b = mesh.triangles[k][std::size_t((e + 1) % 3)];
+      auto [it, added] = owner.try_emplace(edge_key(a, b), k);
+      if (!added)
+        return fmt::format("the edge from {} to {} runs the same way in triangles {} and {}: the mesh is not "
+                           "consistently oriented, or more than two triangles share the edge",
+                           where(mesh.vertices[a]), where(mesh.vertices[b]), it->second + 1, k + 1);
+    }
+  for (std::size_t k = 0; k < mesh.triangles.size(); ++k)
+    for (int e = 0; e < 3; ++e) {
+      const std::uint32_t a = mesh.triangles[k][std::size_t(e)], b = mesh.triangles[k][std::size_t((e + 1) % 3)];
+      if (!owner.count(edge_key(b, a)))
+        return fmt::format("the edge from {} to {} of triangle {} has no triangle on its other side: the mesh is not closed",
+                           where(mesh.vertices[a]), where(mesh.vertices[b]), k + 1);
+    }
+  return "";
+}
+
+}  // namespace
+
+double Bounds::largest_side() const {
+  const Vec3 e = extent();
+  return std::max({e.x, e.y, e.z});
+}
+
+Bounds bounds_of(const TriangleMesh& mesh) {
+  Bounds b{{HUGE_VAL, HUGE_VAL, HUGE_VAL}, {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL}};
+  for (const Vec3& v : mesh.vertices) {
+    b.lower = {std::min(b.lower.x, v.x), std::min(b.lower.y, v.y), std::min(b.lower.z, v.z)};
+    b.upper = {std::max(b.upper.x, v.x), std::max(b.upper.y, v.y), std::max(b.upper.z, v.z)};
+  }
+  return b;
+}
+
+TriangleMesh read_obj(const std::string& path) {
+  tinyobj::ObjReader reader;
+  tinyobj::ObjReaderConfig config;
+  config.triangulate = true;
+  config.vertex_color = false;
+  if (!reader.ParseFromFile(path, config)) {
+    std::string why = reader.Error();
+    while (!why.empty() && (why.back() == '\n' || why.back() == '\r')) why.pop_back();
+    std::replace(why.begin(), why.end(), '\n', ' ');
+    throw std::runtime_error(path + ": cannot be read as OBJ: " + (why.empty() ? "no reason given" : why));
+  }
+  TriangleMesh mesh;
+  const std::vector<tinyobj::real_t>& v = reader.GetAttrib().vertices;
+  for (std::size_t i = 0; i + 2 < v.size(); i += 3) mesh.vertices.push_back({v[i], v[i + 1], v[i + 2]});
+  for (const tinyobj::shape_t& shape : reader.GetShapes()) {
+    const std::vector<tinyobj::index_t>& idx = shape.mesh.indices;
+    for (std::size_t i = 0; i + 2 < idx.size(); i += 3) {
+      std::array<std::uint32_t, 3> t{};
+      for (std::size_t j = 0; j < 3; ++j) {
+        if (idx[i + j].vertex_index < 0 || std::size_t(idx[i + j].vertex_index) >= mesh.vertices.size())
+          throw std::runtime_error(fmt::format("{}: a face names vertex {}, of {}", path, idx[i + j].vertex_index + 1, mesh.vertices.size()));
+        t[j] = std::uint32_t(idx[i + j].vertex_index);
+      }
+      mesh.triangles.push_back(t);
+    }
+  }
+  if (mesh.triangles.empty()) throw std::runtime_error(path + ": holds no triangle");
+  return welded(mesh);
+}
+
+std::string obj_text(const TriangleMesh& mesh) {
+  std::string out;
+  // Nine digits put the decimal well inside the float's rounding interval, so that an OBJ
+  // reader whose parsing is not correctly rounded still reads the same float.
+  for (const Vec3& v : mesh.vertices) out += fmt::format("v {:.9g} {:.9g} {:.9g}\n", float(v.x), float(v.y), float(v.z));
+  for (const auto& t : mesh.triangles) out += fmt::format("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+  return out;
+}
+
+std::string mesh_error(const TriangleMesh& mesh) {
+  if (mesh.triangles.empty()) return "no triangle";
+  for (auto check : {vertex_error, degenerate_error, edge_error})
+    if (std::string why = check(mesh); !why.empty()) return why;
+  if (!(std::abs(enclosed_volume(mesh)) > 0)) return "the mesh encloses no volume";
+  return "";
+}
+
+double enclosed_volume(const TriangleMesh& mesh) {
+  double six_v = 0;  // the divergence theorem over tetrahedra to the origin
+  for (const auto& t : mesh.triangles)
+    six_v += dot(mesh.vertices[t[0]], cross(mesh.vertices[t[1]], mesh.vertices[t[2]]));
+  return six_v / 6;
+}
+
+TriangleMesh oriented_outward(TriangleMesh mesh) {
+  if (enclosed_volume(mesh) < 0)
+    for (auto& t : mesh.triangles) std::swap(t[1], t[2]);
+  return mesh;
+}
+
+TriangleMesh placed(const TriangleMesh& mesh, double scale, const Vec3& translate) {
+  TriangleMesh out = mesh;
+  for (Vec3& v : out.vertices) v = at_float_precision(scale * v + translate);
+  return out;
+}
+
+}  // namespace stf::geometry

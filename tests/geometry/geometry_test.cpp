@@ -1,0 +1,224 @@
+// Meshes that bound media: the checks refuse what cannot bound one and name the element; the
+// procedural shapes are valid and enclose their analytic volumes; Embree's rays and distances
+// agree with brute force over every triangle; the free radius (exact query and distance grid)
+// is never above the true distance, on convex, concave and thin meshes.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "stf/geometry/boundary.h"
+#include "stf/geometry/distance_grid.h"
+#include "stf/geometry/mesh.h"
+#include "stf/geometry/shipped_meshes.h"
+
+namespace {
+
+using namespace stf;
+using namespace stf::geometry;
+namespace fs = std::filesystem;
+
+const fs::path kMeshes = fs::path(STF_SOURCE_DIR) / "data/scenes/meshes";
+
+// The winding number of the mesh about p (the sum of the triangles' signed solid angles over
+// 4 pi, Van Oosterom and Strackee 1983): 1 inside, 0 outside; no ray is cast.
+double winding_number(const TriangleMesh& m, const Vec3& p) {
+  double sum = 0;
+  for (const auto& t : m.triangles) {
+    const Vec3 a = m.vertices[t[0]] - p, b = m.vertices[t[1]] - p, c = m.vertices[t[2]] - p;
+    const double la = length(a), lb = length(b), lc = length(c);
+    sum += 2 * std::atan2(dot(a, cross(b, c)), la * lb * lc + dot(a, b) * lc + dot(a, c) * lb + dot(b, c) * la);
+  }
+  return sum / (4 * kPi);
+}
+
+double segment_distance(const Vec3& p, const Vec3& a, const Vec3& b) {
+  const double t = std::clamp(dot(p - a, b - a) / dot(b - a, b - a), 0.0, 1.0);
+  return length(p - (a + t * (b - a)));
+}
+
+// The distance to the triangle another way: the plane's distance where p projects inside the
+// triangle (all three edge tests agree), else the nearest of the three edges.
+double triangle_distance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 n = normalize(cross(b - a, c - a));
+  const double h = dot(p - a, n);
+  const Vec3 q = p - h * n;
+  const bool in = dot(cross(b - a, q - a), n) >= 0 && dot(cross(c - b, q - b), n) >= 0 && dot(cross(a - c, q - c), n) >= 0;
+  if (in) return std::abs(h);
+  return std::min({segment_distance(p, a, b), segment_distance(p, b, c), segment_distance(p, c, a)});
+}
+
+double brute_distance(const TriangleMesh& m, const Vec3& p) {
+  double d = HUGE_VAL;
+  for (const auto& t : m.triangles) d = std::min(d, triangle_distance(p, m.vertices[t[0]], m.vertices[t[1]], m.vertices[t[2]]));
+  return d;
+}
+
+// Points inside the mesh, uniform in its volume (by the winding number).
+std::vector<Vec3> interior_points(const TriangleMesh& m, int count, unsigned seed) {
+  const Bounds b = bounds_of(m);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<Vec3> points;
+  while (int(points.size()) < count) {
+    const Vec3 e = b.extent();
+    const Vec3 p = b.lower + Vec3{e.x * u(rng), e.y * u(rng), e.z * u(rng)};
+    if (winding_number(m, p) > 0.5) points.push_back(p);
+  }
+  return points;
+}
+
+std::vector<std::pair<std::string, TriangleMesh>> test_meshes() {
+  std::vector<std::pair<std::string, TriangleMesh>> meshes = shipped_meshes();
+  meshes.emplace_back("spot.obj", oriented_outward(read_obj((kMeshes / "spot.obj").string())));
+  return meshes;
+}
+
+TEST(Mesh, ShapesAreClosedOrientedAndEncloseTheirVolumes) {
+  const double r = 0.5, R = 0.35, rt = 0.15;
+  // Steiner's formula for a box of inner sides a, b, c grown by a ball of radius s.
+  auto rounded = [](double a, double b, double c, double s) {
+    return a * b * c + 2 * s * (a * b + b * c + c * a) + kPi * s * s * (a + b + c) + 4.0 / 3 * kPi * s * s * s;
+  };
+  const std::vector<double> exact{4.0 / 3 * kPi * r * r * r, 2 * kPi * kPi * R * rt * rt,
+                                  rounded(0.84, 0.54, 0.34, 0.08), rounded(0.96, 0.04, 0.76, 0.02)};
+  const auto meshes = shipped_meshes();
+  for (std::size_t i = 0; i < meshes.size(); ++i) {
+    const auto& [name, m] = meshes[i];
+    EXPECT_EQ(mesh_error(m), "") << name;
+    const double v = enclosed_volume(m);
+    // Inscribed tessellations: a little below the exact volume, by under 1%.
+    EXPECT_LT(v, exact[i]) << name;
+    EXPECT_GT(v, 0.99 * exact[i]) << name;
+  }
+}
+
+TEST(Mesh, ShippedFilesAreTheProceduralMeshes) {
+  for (const auto& [name, m] : shipped_meshes()) {
+    const TriangleMesh read = read_obj((kMeshes / name).string());
+    ASSERT_EQ(read.vertices.size(), m.vertices.size()) << name;
+    ASSERT_EQ(read.triangles.size(), m.triangles.size()) << name;
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) EXPECT_EQ(length(read.vertices[i] - m.vertices[i]), 0) << name << i;
+    EXPECT_EQ(read.triangles, m.triangles) << name;
+  }
+  EXPECT_EQ(mesh_error(read_obj((kMeshes / "spot.obj").string())), "");
+}
+
+// Each defect in a small closed mesh, and the element its message names.
+TEST(Mesh, DefectsAreNamed) {
+  const TriangleMesh good = icosphere(1, 0);
+  ASSERT_EQ(mesh_error(good), "");
+  TriangleMesh open = good;
+  open.triangles.pop_back();
+  EXPECT_NE(mesh_error(open).find("not closed"), std::string::npos) << mesh_error(open);
+  TriangleMesh flipped = good;
+  std::swap(flipped.triangles[3][1], flipped.triangles[3][2]);
+  EXPECT_NE(mesh_error(flipped).find("not consistently oriented"), std::string::npos) << mesh_error(flipped);
+  TriangleMesh repeated = good;
+  repeated.triangles[5][2] = repeated.triangles[5][0];
+  EXPECT_NE(mesh_error(repeated).find("triangle 6"), std::string::npos) << mesh_error(repeated);
+  TriangleMesh flat = good;
+  flat.vertices[flat.triangles[0][2]] = 0.5 * (flat.vertices[flat.triangles[0][0]] + flat.vertices[flat.triangles[0][1]]);
+  EXPECT_NE(mesh_error(flat).find("degenerate"), std::string::npos) << mesh_error(flat);
+  TriangleMesh nan = good;
+  nan.vertices[7].y = std::nan("");
+  EXPECT_NE(mesh_error(nan).find("vertex 8 is not finite"), std::string::npos) << mesh_error(nan);
+  TriangleMesh doubled = good;  // a second copy of every triangle: each edge four times
+  doubled.triangles.insert(doubled.triangles.end(), good.triangles.begin(), good.triangles.end());
+  EXPECT_NE(mesh_error(doubled).find("same way"), std::string::npos) << mesh_error(doubled);
+  TriangleMesh inward = good;
+  for (auto& t : inward.triangles) std::swap(t[1], t[2]);
+  EXPECT_EQ(mesh_error(inward), "");  // consistent, only the other way round
+  EXPECT_LT(enclosed_volume(inward), 0);
+  EXPECT_GT(enclosed_volume(oriented_outward(inward)), 0);
+}
+
+TEST(Mesh, FilesThatAreNoMeshesAreRefusedNamingTheFile) {
+  const fs::path dir = fs::temp_directory_path() / ("stf-geometry-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const std::vector<std::pair<std::string, std::string>> files = {
+      {"empty.obj", ""}, {"points.obj", "v 0 0 0\nv 1 0 0\n"}, {"bad_index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n"}};
+  for (const auto& [name, text] : files) {
+    std::ofstream((dir / name).string()) << text;
+    try {
+      read_obj((dir / name).string());
+      ADD_FAILURE() << name << " was read";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_THROW(read_obj((dir / "missing.obj").string()), std::runtime_error);
+  fs::remove_all(dir);
+}
+
+TEST(Boundary, DistanceIsALowerBoundWithinRoundingOfBruteForce) {
+  for (const auto& [name, m] : test_meshes()) {
+    const Boundary boundary({m});
+    for (const Vec3& p : interior_points(m, 150, 7)) {
+      const double exact = brute_distance(m, p), d = boundary.distance(p);
+      EXPECT_LE(d, exact) << name;
+      // The margins for float: Embree's search about p rounded (1e-7 here) and its culling.
+      EXPECT_GE(d, exact * (1 - 1e-5) - 2e-7) << name;
+    }
+  }
+}
+
+TEST(Boundary, GridBoundIsNeverAboveTheTrueDistance) {
+  for (const auto& [name, m] : test_meshes()) {
+    const Boundary boundary({m});
+    const DistanceGrid grid(boundary, bounds_of(m), 48);
+    double slack = 0;
+    const std::vector<Vec3> points = interior_points(m, 300, 11);
+    for (const Vec3& p : points) {
+      const double exact = brute_distance(m, p), g = grid.lower_bound(p);
+      EXPECT_LE(g, exact) << name;
+      EXPECT_GE(g, exact - std::sqrt(3.0) * grid.cell()) << name;  // within a cell's diagonal
+      slack += exact - g;
+    }
+    EXPECT_LT(slack / double(points.size()), grid.cell()) << name;
+    EXPECT_EQ(grid.bytes() % sizeof(float), 0u);
+  }
+}
+
+TEST(Boundary, RaysFromInsideLeaveThroughTheirMeshFacingOut) {
+  for (const auto& [name, m] : test_meshes()) {
+    const Boundary boundary({m});
+    std::mt19937_64 rng(3);
+    std::normal_distribution<double> n;
+    for (const Vec3& p : interior_points(m, 100, 13)) {
+      const Vec3 w = normalize({n(rng), n(rng), n(rng)});
+      const Hit h = boundary.intersect(p, w);
+      ASSERT_TRUE(h.found) << name;
+      EXPECT_EQ(h.object, 0);
+      EXPECT_GE(h.t, brute_distance(m, p) * (1 - 1e-5)) << name;  // no nearer than the nearest triangle
+      EXPECT_GT(dot(h.normal, w), 0) << name;                      // leaving: the outward normal ahead
+      EXPECT_TRUE(boundary.inside(p, 0)) << name;
+      const Vec3 out = boundary.spawn(p + h.t * w, h.normal, w);
+      EXPECT_LT(winding_number(m, out), 0.5) << name;
+    }
+  }
+}
+
+TEST(Boundary, InsideAgreesWithTheWindingNumber) {
+  const TriangleMesh m = oriented_outward(read_obj((kMeshes / "spot.obj").string()));
+  const Boundary boundary({m});
+  const Bounds b = bounds_of(m);
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(0, 1);
+  int inside = 0;
+  for (int i = 0; i < 400; ++i) {
+    const Vec3 e = b.extent();
+    const Vec3 p = b.lower + Vec3{e.x * u(rng), e.y * u(rng), e.z * u(rng)};
+    const bool in = winding_number(m, p) > 0.5;
+    inside += in;
+    EXPECT_EQ(boundary.inside(p, 0), in) << p.x << " " << p.y << " " << p.z;
+  }
+  EXPECT_GT(inside, 40);
+  EXPECT_LT(inside, 360);
+}
+
+}  // namespace
