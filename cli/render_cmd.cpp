@@ -13,6 +13,7 @@
 
 #include "stf/scene/build.h"
 #include "cli.h"
+#include "render_cmd.h"
 #include "stf/core/h5io.h"
 #include "stf/scene/plan.h"
 #include "stf/render/image_file.h"
@@ -24,14 +25,6 @@
 namespace stf::cli {
 
 namespace {
-
-struct RenderOptions {
-  Medium medium;
-  std::string width = "64", height = "64", spp, seed = "1", threads = "0";
-  std::string method, pack, cache, output, exr, png, json;
-  double tolerance = 0.02, exposure = 0;
-  bool quiet = false;
-};
 
 // Where packs built for renders are cached: --cache, $STF_CACHE_DIR, $XDG_CACHE_HOME/stf or
 // ~/.cache/stf.
@@ -48,11 +41,7 @@ std::string cache_folder(const RenderOptions& o) {
 scene::Scene render_scene(const RenderOptions& o) {
   scene::Scene sc;
   sc.path = "stf render";
-  sc.settings.tolerance = o.tolerance;
-  sc.settings.paths = 4'000'000;
-  sc.settings.grid = "healpix:16";
-  sc.settings.alpha_bins = 45;
-  sc.settings.model = "hvmf:auto";
+  sc.settings = render_pack_settings(o.tolerance);
   const Medium& m = o.medium;
   const render::PackLadder ladder = render::pack_ladder(m);
   sc.settings.tau_skip = ladder.smallest;
@@ -61,18 +50,20 @@ scene::Scene render_scene(const RenderOptions& o) {
   return sc;
 }
 
-// What building the render's pack took: its seconds, and how many spheres were walked and fitted
-// (the others came from the cache).
-struct PackBuild {
-  double seconds = 0;
-  int spheres_computed = 0;
-};
+}  // namespace
 
-// Builds (or finds in the cache) the pack for the medium; returns its entries, and in `build`
-// what building took.
-std::vector<PackEntry> build_pack(const RenderOptions& o, int threads, PackBuild& build) {
+scene::Settings render_pack_settings(double tolerance) {
+  scene::Settings s;
+  s.tolerance = tolerance;
+  s.paths = 4'000'000;
+  s.grid = "healpix:16";
+  s.alpha_bins = 45;
+  s.model = "hvmf:auto";
+  return s;
+}
+
+std::vector<PackEntry> build_pack(const scene::Scene& sc, const RenderOptions& o, int threads, PackBuild& build) {
   const auto start = std::chrono::steady_clock::now();
-  const scene::Scene sc = render_scene(o);
   const std::string cache = cache_folder(o);
   require_writable_folder(cache, "--cache");
   const scene::Plan plan = scene::make_plan(sc, cache);
@@ -107,6 +98,41 @@ std::vector<PackEntry> read_pack_option(const std::string& path) {
   if (!read_pack_file(path, entries, error)) fail("--pack: " + path + ": " + error);
   return entries;
 }
+
+RenderOutputs::RenderOutputs(const RenderOptions& o) : image(o.output, "-o", {{o.pack, "--pack"}}) {
+  std::vector<NamedFile> keep{{o.pack, "--pack"}, image.named()};
+  if (!o.exr.empty()) exr.emplace(o.exr, "--exr", keep), keep.push_back(exr->named());
+  if (!o.png.empty()) png.emplace(o.png, "--png", keep), keep.push_back(png->named());
+  if (!o.json.empty()) json.emplace(o.json, "--json", keep);
+}
+
+void RenderOutputs::finish(const render::Image& im, double exposure, const std::string& json_text) {
+  const render::Radiance radiance{im.mean, im.width, im.height, im.channels};
+  if (exr) render::write_exr(exr->temp_path(), radiance);
+  if (png) render::write_png(png->temp_path(), radiance, exposure);
+  if (json) json->stage(json_text);
+  const auto held = [](std::optional<AtomicOutput>& out) { return out ? &*out : nullptr; };
+  commit_all({&image, held(exr), held(png), held(json)});
+}
+
+render::ImageSettings image_settings(const RenderOptions& o, const CLI::App& cmd, int width, int height) {
+  const bool stf = o.method == "stf";
+  if (!stf && (cmd.count("--pack") || cmd.count("--tolerance")))
+    fail("--pack and --tolerance apply to --method stf only");
+  if (cmd.count("--pack") && cmd.count("--tolerance"))
+    fail("--pack and --tolerance exclude each other: --tolerance builds the pack");
+  if (!(o.tolerance > 0 && o.tolerance < 1)) fail("--tolerance must be in (0, 1), got " + std::to_string(o.tolerance));
+  if (!std::isfinite(o.exposure)) fail("--exposure must be a finite number of stops");
+  render::ImageSettings s;
+  s.width = cmd.count("--width") ? int(parse_count(o.width, "--width", 1, 8192)) : width;
+  s.height = cmd.count("--height") ? int(parse_count(o.height, "--height", 1, 8192)) : height;
+  s.spp = parse_count(o.spp, "--spp", 1, std::int64_t(1) << 40);
+  s.seed = std::uint64_t(parse_count(o.seed, "--seed", 0, INT64_MAX));
+  s.run.threads = int(parse_count(o.threads, "--threads", 0, 4096));
+  return s;
+}
+
+namespace {
 
 void write_image(AtomicOutput& out, const render::Image& image, const RenderOptions& o, std::int64_t spp,
                  std::int64_t seed) {
@@ -151,38 +177,20 @@ std::string stats_json(const render::Image& image, const PackBuild& build, const
   return j.dump(2) + "\n";
 }
 
-void run_render(const RenderOptions& o, const CLI::App& cmd) {
+void run_sphere_render(const RenderOptions& o, const CLI::App& cmd) {
+  for (const char* flag : {"--sigma-s", "--sigma-a", "--g"})
+    if (!cmd.count(flag)) fail(std::string("give a scene file, or ") + flag + " (with --sigma-s, --sigma-a and --g) for the sphere");
   if (auto error = validate(o.medium, PrecomputeSettings{})) fail(*error);
   const bool stf = o.method == "stf";
-  if (!stf && (cmd.count("--pack") || cmd.count("--tolerance")))
-    fail("--pack and --tolerance apply to --method stf only");
-  if (cmd.count("--pack") && cmd.count("--tolerance"))
-    fail("--pack and --tolerance exclude each other: --tolerance builds the pack");
-  if (!(o.tolerance > 0 && o.tolerance < 1)) fail("--tolerance must be in (0, 1), got " + std::to_string(o.tolerance));
-  if (!std::isfinite(o.exposure)) fail("--exposure must be a finite number of stops");
-  render::ImageSettings s;
-  s.width = int(parse_count(o.width, "--width", 1, 8192));
-  s.height = int(parse_count(o.height, "--height", 1, 8192));
-  s.spp = parse_count(o.spp, "--spp", 1, std::int64_t(1) << 40);
-  const std::int64_t seed = parse_count(o.seed, "--seed", 0, INT64_MAX);
-  s.seed = std::uint64_t(seed);
-  s.run.threads = int(parse_count(o.threads, "--threads", 0, 4096));
-
-  // Every output claimed before any work; none may be the pack or another output.
-  std::vector<NamedFile> keep{{o.pack, "--pack"}};
-  AtomicOutput image_out(o.output, "-o", keep);
-  keep.push_back(image_out.named());
-  std::optional<AtomicOutput> exr_out, png_out, json_out;
-  if (!o.exr.empty()) exr_out.emplace(o.exr, "--exr", keep), keep.push_back(exr_out->named());
-  if (!o.png.empty()) png_out.emplace(o.png, "--png", keep), keep.push_back(png_out->named());
-  if (!o.json.empty()) json_out.emplace(o.json, "--json", keep);
+  render::ImageSettings s = image_settings(o, cmd, 64, 64);
+  RenderOutputs outputs(o);
 
   PackBuild build;
   std::unique_ptr<render::Method> method;
   const render::ShellStrides* strided = nullptr;
   if (stf) {
     auto strides = std::make_unique<render::ShellStrides>(
-        o.medium, o.pack.empty() ? build_pack(o, s.run.threads, build) : read_pack_option(o.pack));
+        o.medium, o.pack.empty() ? build_pack(render_scene(o), o, s.run.threads, build) : read_pack_option(o.pack));
     strided = strides.get();
     if (!o.pack.empty() && strides->spheres() == 0)  // most likely the pack of another medium
       fail("--pack: " + o.pack + " has no sphere of albedo " + shortest(o.medium.albedo()) + " and g " +
@@ -196,13 +204,8 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
   render::Image image = render::render(o.medium, *method, s);
   bar.finish();
   stop_if_interrupted();
-  write_image(image_out, image, o, s.spp, seed);
-  const render::Radiance radiance{image.mean, image.width, image.height, 1};
-  if (exr_out) render::write_exr(exr_out->temp_path(), radiance);
-  if (png_out) render::write_png(png_out->temp_path(), radiance, o.exposure);
-  if (json_out) json_out->stage(stats_json(image, build, strided));
-  const auto held = [](std::optional<AtomicOutput>& out) { return out ? &*out : nullptr; };
-  commit_all({&image_out, held(exr_out), held(png_out), held(json_out)});
+  write_image(outputs.image, image, o, s.spp, std::int64_t(s.seed));
+  outputs.finish(image, o.exposure, stats_json(image, build, strided));
   if (!o.quiet)
     std::fprintf(stderr,
                  "stf render: %s, %lld paths in %.3g s (%.3g collisions, %.3g strides per path), mean radiance %.6g "
@@ -216,8 +219,10 @@ void run_render(const RenderOptions& o, const CLI::App& cmd) {
 void add_render_command(CLI::App& app) {
   auto o = std::make_shared<RenderOptions>();
   CLI::App* cmd = app.add_subcommand(
-      "render", "Render a sphere of medium under sky and sun, by brute force or through precomputed spheres");
-  add_medium_options(*cmd, o->medium, true);
+      "render", "Render a scene file, or a sphere of medium under sky and sun, by brute force or through precomputed spheres");
+  cmd->add_option("scene", o->scene, "Render scene (TOML: camera, light, media, objects); else the sphere of the medium flags")
+      ->check(CLI::ExistingFile);
+  add_medium_options(*cmd, o->medium, false);
   cmd->add_option("--width", o->width, "Image width in pixels")->capture_default_str();
   cmd->add_option("--height", o->height, "Image height in pixels")->capture_default_str();
   cmd->add_option("--spp", o->spp, "Camera paths per pixel (e.g. 64)")->required();
@@ -241,7 +246,16 @@ void add_render_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--json", o->json, "Write run statistics (seconds, collisions, strides) as JSON");
   cmd->add_flag("--quiet", o->quiet, "No progress bar and no summary line");
-  cmd->callback([o, cmd] { run_render(*o, *cmd); });
+  cmd->add_option("--free-radius", o->free_radius,
+                  "Scenes: a mesh's free radius from its distance grid (grid) or an exact Embree query (query)")
+      ->check(CLI::IsMember({"grid", "query"}))
+      ->capture_default_str();
+  cmd->callback([o, cmd] {
+    if (o->scene.empty()) return run_sphere_render(*o, *cmd);
+    for (const char* flag : {"--sigma-s", "--sigma-a", "--g", "--radius"})
+      if (cmd->count(flag)) fail(std::string(flag) + " belongs to the sphere: a scene file's media are in the file");
+    run_scene_render(*o, *cmd);
+  });
 }
 
 }  // namespace stf::cli

@@ -6,8 +6,20 @@
 
 namespace stf::geometry {
 
+namespace {
+
+constexpr int kCoarse = 4;  // coarse cells are this many cells wide
+
+float rounded_down(double d) {
+  float f = float(d);
+  if (double(f) > d) f = std::nextafter(f, 0.0f);
+  return f;
+}
+
+}  // namespace
+
 DistanceGrid::DistanceGrid(const Boundary& boundary, const Bounds& region, int cells, const RunContext& run) {
-  if (cells < 1 || cells > 1024) throw std::invalid_argument("a distance grid has 1 to 1024 cells along its largest side");
+  if (cells < 4 || cells > 2048) throw std::invalid_argument("a distance grid has 4 to 2048 cells along its largest side");
   const Vec3 extent = region.extent();
   cell_ = std::max(region.largest_side(), 1e-30) / cells;
   inv_cell_ = 1 / cell_;
@@ -16,17 +28,84 @@ DistanceGrid::DistanceGrid(const Boundary& boundary, const Bounds& region, int c
   n_[2] = std::max(1, int(std::ceil(extent.z / cell_)));
   // The centre a query computes may differ from the one measured here by rounding.
   slack_ = 1e-12 * (region.largest_side() + length(region.lower) + length(region.upper));
-  distance_.resize(std::size_t(n_[0]) * std::size_t(n_[1]) * std::size_t(n_[2]));
-  const std::size_t row = std::size_t(n_[0]), plane = row * std::size_t(n_[1]);
-  parallel_for(n_[2], run, [&](std::int64_t k, int) {
+  int nc[3];
+  const std::vector<double> far = coarse(boundary, run, nc);
+  std::vector<double> near(std::size_t(n_[0]) * std::size_t(n_[1]) * std::size_t(n_[2]), HUGE_VAL);
+  rasterise_band(boundary, near, run);
+  value_.resize(near.size());
+  const double band = this->band(), big = kCoarse * cell_;
+  for (int k = 0; k < n_[2]; ++k)
     for (int j = 0; j < n_[1]; ++j)
       for (int i = 0; i < n_[0]; ++i) {
-        const double d = boundary.distance(origin_ + cell_ * Vec3{i + 0.5, j + 0.5, k + 0.5});
-        float f = float(d);
-        if (double(f) > d) f = std::nextafter(f, 0.0f);
-        distance_[std::size_t(k) * plane + std::size_t(j) * row + std::size_t(i)] = f;
+        const std::size_t at = index(i, j, k);
+        if (near[at] <= band) {  // the nearest triangle is within the band, so it was rasterised
+          value_[at] = rounded_down(near[at]);
+          continue;
+        }
+        const int ci = i / kCoarse, cj = j / kCoarse, ck = k / kCoarse;
+        const Vec3 c = origin_ + big * Vec3{ci + 0.5, cj + 0.5, ck + 0.5};
+        const double d = far[(std::size_t(ck) * std::size_t(nc[1]) + std::size_t(cj)) * std::size_t(nc[0]) + std::size_t(ci)];
+        value_[at] = rounded_down(std::max(band, d - length(centre(i, j, k) - c)) * (1 - 1e-12));
       }
+}
+
+std::vector<double> DistanceGrid::coarse(const Boundary& boundary, const RunContext& run, int (&nc)[3]) const {
+  for (int a = 0; a < 3; ++a) nc[a] = (n_[a] + kCoarse - 1) / kCoarse;
+  std::vector<double> d(std::size_t(nc[0]) * std::size_t(nc[1]) * std::size_t(nc[2]));
+  const double big = kCoarse * cell_;
+  parallel_for(nc[2], run, [&](std::int64_t k, int) {
+    for (int j = 0; j < nc[1]; ++j)
+      for (int i = 0; i < nc[0]; ++i)
+        d[(std::size_t(k) * std::size_t(nc[1]) + std::size_t(j)) * std::size_t(nc[0]) + std::size_t(i)] =
+            boundary.distance(origin_ + big * Vec3{i + 0.5, j + 0.5, k + 0.5});
   });
+  return d;
+}
+
+void DistanceGrid::rasterise_band(const Boundary& boundary, std::vector<double>& near, const RunContext& run) const {
+  const double band = this->band();
+  // Each worker owns a slab of z-planes, so no two write the same cell.
+  parallel_for(n_[2], run, [&](std::int64_t k, int) {
+    for (int m = 0; m < boundary.objects(); ++m) {
+      const TriangleMesh& mesh = boundary.mesh(m);
+      for (const auto& t : mesh.triangles) {
+        const Vec3 &a = mesh.vertices[t[0]], &b = mesh.vertices[t[1]], &c = mesh.vertices[t[2]];
+        const double zc = origin_.z + (double(k) + 0.5) * cell_;
+        if (zc < std::min({a.z, b.z, c.z}) - band || zc > std::max({a.z, b.z, c.z}) + band) continue;
+        auto range = [&](double lo, double hi, double o, int n, int& first, int& last) {
+          first = std::max(0, int(std::floor((lo - band - o) * inv_cell_ - 0.5)));
+          last = std::min(n - 1, int(std::ceil((hi + band - o) * inv_cell_ - 0.5)));
+        };
+        int i0, i1, j0, j1;
+        range(std::min({a.x, b.x, c.x}), std::max({a.x, b.x, c.x}), origin_.x, n_[0], i0, i1);
+        range(std::min({a.y, b.y, c.y}), std::max({a.y, b.y, c.y}), origin_.y, n_[1], j0, j1);
+        for (int j = j0; j <= j1; ++j)
+          for (int i = i0; i <= i1; ++i) {
+            double& v = near[index(i, j, int(k))];
+            v = std::min(v, std::sqrt(squared_distance_to_triangle(centre(i, j, int(k)), a, b, c)));
+          }
+      }
+    }
+  });
+}
+
+double DistanceGrid::deepest(const Boundary& boundary, int mesh) const {
+  // The cells from the largest value down, until one inside the mesh: outside a concave mesh
+  // (the hole of a torus) values may be larger than any inside.
+  std::vector<std::size_t> order(value_.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  const std::size_t take = std::min<std::size_t>(order.size(), 4096);
+  for (std::size_t first = 0; first < order.size(); first += take) {
+    const std::size_t last = std::min(order.size(), first + take);
+    std::partial_sort(order.begin() + std::ptrdiff_t(first), order.begin() + std::ptrdiff_t(last), order.end(),
+                      [&](std::size_t a, std::size_t b) { return value_[a] > value_[b]; });
+    for (std::size_t n = first; n < last; ++n) {
+      const std::size_t at = order[n], plane = std::size_t(n_[0]) * std::size_t(n_[1]);
+      const int k = int(at / plane), j = int(at % plane / std::size_t(n_[0])), i = int(at % std::size_t(n_[0]));
+      if (boundary.inside(centre(i, j, k), mesh)) return double(value_[at]);
+    }
+  }
+  return 0;
 }
 
 }  // namespace stf::geometry

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <functional>
 
 #include "stf/core/clock.h"
@@ -12,48 +13,28 @@ namespace stf::render {
 
 namespace {
 
-struct PixelResult {
-  double mean = 0, variance_of_mean = 0;
-};
-
-// One pixel's samples (pixels numbered row by row), jittered over its area, with Welford's
-// running mean and variance.
-PixelResult render_pixel(const Medium& medium, const Method& method, const ImageSettings& s, std::int64_t pixel,
-                         PathCounters& counters, const std::atomic<bool>* cancel) {
-  const int px = int(pixel % s.width), py = int(pixel / s.width);
-  PixelRng rng(s.seed, std::uint64_t(pixel));
+// Welford's running mean and variance of one pixel's samples of one channel.
+struct Running {
   double mean = 0, m2 = 0;
-  for (std::int64_t k = 0; k < s.spp; ++k) {
-    if (cancel && cancel->load(std::memory_order_relaxed)) return {};
-    const double jx = rng.uniform(), jy = rng.uniform();
-    const Ray ray = camera_ray(px + jx, py + jy, s.width, s.height, medium.radius);
-    Vec3 entry;
-    const double value = enter_sphere(ray, medium.radius, entry) ? method.radiance(entry, ray.direction, rng, counters)
-                                                                 : sky_radiance(ray.direction);
+  std::int64_t n = 0;
+  void add(double value) {
     const double delta = value - mean;
-    mean += delta / double(k + 1);
+    mean += delta / double(++n);
     m2 += delta * (value - mean);
   }
-  const double n = double(s.spp);
-  return {mean, s.spp > 1 ? m2 / (n - 1) / n : 0};
-}
+  double variance_of_mean() const { return n > 1 ? m2 / double(n - 1) / double(n) : 0; }
+};
 
-}  // namespace
-
-double Image::mean_radiance() const {
-  double sum = 0;
-  for (double v : mean) sum += v;
-  return mean.empty() ? 0 : sum / double(mean.size());
-}
-
-Image render(const Medium& medium, const Method& method, const ImageSettings& s) {
+// Every pixel (numbered row by row) over the run's threads: `pixel(p, rng, counters, sums)`
+// fills the pixel's running sums per channel; the image takes their means and variances.
+template <typename Pixel>
+Image render_pixels(const ImageSettings& s, int channels, Pixel pixel) {
   const auto start = std::chrono::steady_clock::now();
-  const auto seconds = [&] { return seconds_since(start); };
   Image image;
-  image.width = s.width, image.height = s.height;
+  image.width = s.width, image.height = s.height, image.channels = channels;
   const std::int64_t pixels = std::int64_t(s.width) * s.height;
-  image.mean.assign(std::size_t(pixels), 0);
-  image.variance_of_mean.assign(std::size_t(pixels), 0);
+  image.mean.assign(std::size_t(pixels * channels), 0);
+  image.variance_of_mean.assign(std::size_t(pixels * channels), 0);
   const RunContext& run = s.run;
   std::vector<PathCounters> counters(std::size_t(run.workers(pixels)));  // one per worker
   std::atomic<std::int64_t> done{0};
@@ -61,17 +42,71 @@ Image render(const Medium& medium, const Method& method, const ImageSettings& s)
   parallel_for(
       pixels, run,
       [&](std::int64_t p, int worker) {
-        const PixelResult r = render_pixel(medium, method, s, p, counters[std::size_t(worker)], run.cancel);
-        image.mean[std::size_t(p)] = r.mean;
-        image.variance_of_mean[std::size_t(p)] = r.variance_of_mean;
+        PixelRng rng(s.seed, std::uint64_t(p));
+        Running sums[3];
+        if (!pixel(p, rng, counters[std::size_t(worker)], sums)) return;
+        for (int c = 0; c < channels; ++c) {
+          image.mean[std::size_t(p * channels + c)] = sums[c].mean;
+          image.variance_of_mean[std::size_t(p * channels + c)] = sums[c].variance_of_mean();
+        }
         done.fetch_add(1);
       },
       run.progress ? std::function<void()>(told) : std::function<void()>(), std::chrono::milliseconds(200));
-  for (const PathCounters& c : counters) image.collisions += c.collisions, image.strides += c.strides;  // integer sums
+  for (const PathCounters& c : counters)  // integer sums
+    image.collisions += c.collisions, image.strides += c.strides, image.distance_queries += c.distance_queries,
+        image.shadow_rays += c.shadow_rays;
   image.paths = done.load() * s.spp;
-  image.seconds = seconds();
+  image.seconds = seconds_since(start);
   if (!run.cancelled()) run.tell("", image.paths, pixels * s.spp);
   return image;
+}
+
+// The camera ray through image position (px, py) in pixels (x right, y down from the top-left).
+Ray scene_camera_ray(const scene::CameraSpec& cam, double px, double py, int width, int height) {
+  const Vec3 forward = normalize(cam.look_at - cam.position);
+  const Vec3 right = normalize(cross(forward, cam.up)), up = cross(right, forward);
+  const double half = std::tan(cam.fov * kPi / 360);
+  const double sx = (2 * px / width - 1) * half * width / height, sy = (1 - 2 * py / height) * half;
+  return {cam.position, normalize(forward + sx * right + sy * up)};
+}
+
+}  // namespace
+
+double Image::mean_radiance(int channel) const {
+  double sum = 0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < mean.size(); ++i)
+    if (channel < 0 || int(i % std::size_t(channels)) == channel) sum += mean[i], ++n;
+  return n == 0 ? 0 : sum / double(n);
+}
+
+Image render(const Medium& medium, const Method& method, const ImageSettings& s) {
+  return render_pixels(s, 1, [&](std::int64_t p, PixelRng& rng, PathCounters& counters, Running* sums) {
+    const int px = int(p % s.width), py = int(p / s.width);
+    for (std::int64_t k = 0; k < s.spp; ++k) {
+      if (s.run.cancelled()) return false;
+      const double jx = rng.uniform(), jy = rng.uniform();
+      const Ray ray = camera_ray(px + jx, py + jy, s.width, s.height, medium.radius);
+      Vec3 entry;
+      sums[0].add(enter_sphere(ray, medium.radius, entry) ? method.radiance(entry, ray.direction, rng, counters)
+                                                          : sky_radiance(ray.direction));
+    }
+    return true;
+  });
+}
+
+Image render_scene(const scene::RenderScene& scene, const ScenePaths& paths, const ImageSettings& s) {
+  return render_pixels(s, 3, [&](std::int64_t p, PixelRng& rng, PathCounters& counters, Running* sums) {
+    const int px = int(p % s.width), py = int(p / s.width);
+    for (std::int64_t k = 0; k < s.spp; ++k) {
+      if (s.run.cancelled()) return false;
+      const double jx = rng.uniform(), jy = rng.uniform();
+      const Ray ray = scene_camera_ray(scene.camera, px + jx, py + jy, s.width, s.height);
+      const int c = int(k % 3);
+      sums[c].add(paths.radiance(ray.origin, ray.direction, c, rng, counters));
+    }
+    return true;
+  });
 }
 
 }  // namespace stf::render

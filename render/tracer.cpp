@@ -1,5 +1,6 @@
 #include "stf/render/tracer.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <stf/lookup.h>
@@ -92,6 +93,11 @@ constexpr double kLargestSphere = 128;
 PackLadder pack_ladder(const Medium& m) {
   const double smallest = smallest_paying_tau(m.g, kStrideCost), sigma_t = m.sigma_t();
   return {smallest, kSphereRatio, std::min(m.radius, smallest / sigma_t), std::min(m.radius, kLargestSphere / sigma_t)};
+}
+
+PackLadder stride_ladder(const Medium& m, double room) {
+  const double smallest = smallest_paying_tau(m.g, kStrideCost), sigma_t = m.sigma_t();
+  return {smallest, kSphereRatio, smallest / sigma_t, std::min(room, kLargestSphere / sigma_t)};
 }
 
 std::vector<PackEntry> entries_for(const Medium& m, const std::vector<PackEntry>& pack) {

@@ -176,10 +176,12 @@ TEST(Boundary, GridBoundIsNeverAboveTheTrueDistance) {
     for (const Vec3& p : points) {
       const double exact = brute_distance(m, p), g = grid.lower_bound(p);
       EXPECT_LE(g, exact) << name;
-      EXPECT_GE(g, exact - std::sqrt(3.0) * grid.cell()) << name;  // within a cell's diagonal
+      // Exact at the centres within the band, so within a cell's diagonal there; deeper within
+      // a coarse cell's.
+      EXPECT_GE(g, exact - std::sqrt(3.0) * (exact < grid.band() ? 1 : 5) * grid.cell()) << name;
       slack += exact - g;
     }
-    EXPECT_LT(slack / double(points.size()), grid.cell()) << name;
+    EXPECT_LT(slack / double(points.size()), 2 * grid.cell()) << name;
     EXPECT_EQ(grid.bytes() % sizeof(float), 0u);
   }
 }

@@ -1,7 +1,13 @@
-// A precomputed lower bound of the distance to a scene's boundary: the exact distance at the
-// centres of a regular grid over a region, and at any point x of cell c the bound
-// d(c) - |x - c|, which never exceeds d(x) (the distance is 1-Lipschitz). One load and a square
-// root per query, against a BVH search for the exact distance.
+// A precomputed lower bound of the distance to a scene's boundary: values v(c) <= d(c) at the
+// centres of a regular grid over a region, and at any point x of cell c the bound v(c) - |x - c|,
+// which never exceeds d(x) (the distance is 1-Lipschitz). One load and a square root per query,
+// against a BVH search for the exact distance.
+//
+// v is exact within a band of three cells of the surface (every triangle's neighbourhood
+// rasterised, point-triangle distances in double), where the smallest spheres need it; deeper
+// it is the band's width or the exact distance at the centre of the cell 4 times as large that
+// holds c less the distance between the centres, whichever is larger. Building costs one Embree
+// query per coarse cell instead of one per cell.
 #pragma once
 
 #include <algorithm>
@@ -17,27 +23,37 @@ namespace stf::geometry {
 class DistanceGrid {
  public:
   // A grid over `region` with `cells` cells along its largest side (cubic cells), the distances
-  // from `boundary`. Throws std::invalid_argument for cells outside [1, 1024].
+  // from `boundary`. Throws std::invalid_argument for cells outside [4, 2048].
   DistanceGrid(const Boundary& boundary, const Bounds& region, int cells, const RunContext& run = {});
 
-  // A lower bound of the distance from x to the boundary (0 far outside the region).
+  // A lower bound of the distance from x to the boundary (0 outside the region).
   double lower_bound(const Vec3& x) const {
     const double fx = (x.x - origin_.x) * inv_cell_, fy = (x.y - origin_.y) * inv_cell_, fz = (x.z - origin_.z) * inv_cell_;
     if (!(fx >= 0 && fy >= 0 && fz >= 0 && fx < n_[0] && fy < n_[1] && fz < n_[2])) return 0;
     const int i = int(fx), j = int(fy), k = int(fz);
     const Vec3 centre = origin_ + cell_ * Vec3{i + 0.5, j + 0.5, k + 0.5};
-    const double d = double(distance_[(std::size_t(k) * std::size_t(n_[1]) + std::size_t(j)) * std::size_t(n_[0]) + std::size_t(i)]);
+    const double d = double(value_[index(i, j, k)]);
     return std::max(0.0, d - length(x - centre) - slack_);
   }
 
-  std::size_t bytes() const { return distance_.size() * sizeof(float); }
+  std::size_t bytes() const { return value_.size() * sizeof(float); }
   double cell() const { return cell_; }
+  double band() const { return 3 * cell_; }
+  // The largest value over cells whose centre is inside mesh k of the boundary.
+  double deepest(const Boundary& boundary, int mesh) const;
 
  private:
+  std::size_t index(int i, int j, int k) const {
+    return (std::size_t(k) * std::size_t(n_[1]) + std::size_t(j)) * std::size_t(n_[0]) + std::size_t(i);
+  }
+  Vec3 centre(int i, int j, int k) const { return origin_ + cell_ * Vec3{i + 0.5, j + 0.5, k + 0.5}; }
+  std::vector<double> coarse(const Boundary& boundary, const RunContext& run, int (&nc)[3]) const;
+  void rasterise_band(const Boundary& boundary, std::vector<double>& near, const RunContext& run) const;
+
   Vec3 origin_;
   double cell_ = 0, inv_cell_ = 0, slack_ = 0;
   int n_[3] = {0, 0, 0};
-  std::vector<float> distance_;  // at cell centres, rounded down, [z][y][x]
+  std::vector<float> value_;  // v at cell centres, rounded down, [z][y][x]
 };
 
 }  // namespace stf::geometry

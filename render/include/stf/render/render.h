@@ -9,6 +9,7 @@
 
 #include "stf/core/parallel.h"
 #include "stf/render/render_scene.h"
+#include "stf/render/scene_paths.h"
 #include "stf/render/tracer.h"
 
 namespace stf::render {
@@ -21,13 +22,18 @@ struct ImageSettings {
 };
 
 struct Image {
-  int width = 0, height = 0;
-  std::vector<double> mean;              // [height * width], row 0 at the top
-  std::vector<double> variance_of_mean;  // sample variance / spp, per pixel
+  int width = 0, height = 0, channels = 1;
+  std::vector<double> mean;              // [height * width * channels], row 0 at the top
+  std::vector<double> variance_of_mean;  // sample variance / samples, per pixel and channel
   double seconds = 0;                    // wall clock
-  std::int64_t paths = 0, collisions = 0, strides = 0;
-  double mean_radiance() const;
+  std::int64_t paths = 0, collisions = 0, strides = 0, distance_queries = 0, shadow_rays = 0;
+  double mean_radiance(int channel = -1) const;  // over one channel, or all (-1)
 };
+
+// Renders a scene file's image in RGB (settings' width and height; the camera's field of view
+// and pose from the scene), each camera path one channel in turn (samples k, k + 3, ... of a
+// pixel carry channel k), through `paths` (brute force or strides).
+Image render_scene(const scene::RenderScene& scene, const ScenePaths& paths, const ImageSettings& settings);
 
 // Renders until done or settings.run is cancelled (then the image is incomplete: check the
 // flag), telling its progress in paths five times a second.

@@ -18,8 +18,10 @@
 namespace stf::render {
 
 struct PathCounters {
-  std::int64_t collisions = 0;  // free flights ended by a collision
-  std::int64_t strides = 0;     // jumps through a precomputed sphere
+  std::int64_t collisions = 0;        // free flights ended by a collision
+  std::int64_t strides = 0;           // jumps through a precomputed sphere
+  std::int64_t distance_queries = 0;  // free radii asked of a mesh's grid or Embree (scenes)
+  std::int64_t shadow_rays = 0;       // next-event estimation toward the sun (scenes)
 };
 
 // Paths whose throughput falls below this play Russian roulette (survivors carry exactly it),
@@ -96,6 +98,9 @@ struct PackLadder {
   double smallest, ratio, radius_min, radius_max;
 };
 PackLadder pack_ladder(const Medium& m);
+// The same for a medium whose largest free radius is `room` (an object of a render scene):
+// radius_max < radius_min when no sphere that pays fits.
+PackLadder stride_ladder(const Medium& m, double room);
 
 // Entries of `pack` computed for this medium's albedo and g (relative difference below 1e-9).
 std::vector<PackEntry> entries_for(const Medium& m, const std::vector<PackEntry>& pack);

@@ -28,12 +28,9 @@
 #include <string>
 #include <vector>
 
-namespace stf::scene {
+#include "stf/scene/scene_error.h"
 
-// A bad scene file: the message names the file, the line and the key.
-struct SceneError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+namespace stf::scene {
 
 struct Settings {
   std::int64_t paths = 1'000'000;

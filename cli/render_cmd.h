@@ -1,0 +1,61 @@
+// What `stf render`'s two forms share: the sphere of flags (render_cmd.cpp) and a scene file
+// (render_scene_cmd.cpp) parse the same options, build or read the same kind of pack and write
+// the same outputs.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <stf/pack.h>
+
+#include "cli.h"
+#include "stf/core/table.h"
+#include "stf/render/render.h"
+#include "stf/scene/scene.h"
+
+namespace stf::cli {
+
+struct RenderOptions {
+  std::string scene;  // a render scene file, or "" for the sphere of the medium flags
+  Medium medium;
+  std::string width = "64", height = "64", spp, seed = "1", threads = "0";
+  std::string method, pack, cache, output, exr, png, json, free_radius = "grid";
+  double tolerance = 0.02, exposure = 0;
+  bool quiet = false;
+};
+
+// What building the render's pack took: its seconds, and how many spheres were walked and fitted
+// (the others came from the cache).
+struct PackBuild {
+  double seconds = 0;
+  int spheres_computed = 0;
+};
+
+// Every output claimed before any work; none may be the pack or another output.
+struct RenderOutputs {
+  explicit RenderOutputs(const RenderOptions& o);
+  AtomicOutput image;
+  std::optional<AtomicOutput> exr, png, json;
+  // Writes the EXR and PNG of `image`, stages `json` and puts everything in place together.
+  void finish(const render::Image& image, double exposure, const std::string& json_text);
+};
+
+// --spp, --seed, --threads, and --width/--height (else the given defaults); checks the options
+// both forms share.
+render::ImageSettings image_settings(const RenderOptions& o, const CLI::App& cmd, int width, int height);
+
+// Builds (or finds in the cache) the pack of `scene`'s media (certified within --tolerance);
+// returns its entries, and in `build` what building took.
+std::vector<PackEntry> build_pack(const scene::Scene& scene, const RenderOptions& o, int threads, PackBuild& build);
+std::vector<PackEntry> read_pack_option(const std::string& path);
+
+// The settings of the packs renders build: 4e6 paths per sphere on healpix:16, 45 alpha bins,
+// hvmf:auto, certified within `tolerance`.
+scene::Settings render_pack_settings(double tolerance);
+
+void run_scene_render(const RenderOptions& o, const CLI::App& cmd);
+
+}  // namespace stf::cli

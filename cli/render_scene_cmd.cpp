@@ -1,0 +1,117 @@
+// `stf render SCENE.toml`: a render scene (media in meshes, in colour, behind glass, under a
+// sun) by brute force or through shell strides, with the same next-event estimation.
+#include <H5Cpp.h>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+
+#include "render_cmd.h"
+#include "stf/core/h5io.h"
+#include "stf/render/scene_geometry.h"
+#include "stf/render/scene_paths.h"
+#include "stf/scene/render_scene.h"
+
+namespace stf::cli {
+
+namespace {
+
+const char* const kChannel[3] = {"R", "G", "B"};
+
+// The pack a scene's strides need: every object's medium in every channel, spheres from the
+// smallest that pays to the largest that fits in the object (the plan shares equal spheres).
+scene::Scene stride_scene(const scene::RenderScene& sc, const render::SceneGeometry& geometry, double tolerance) {
+  scene::Scene pack;
+  pack.path = sc.path;
+  pack.settings = render_pack_settings(tolerance);
+  pack.settings.tau_skip = HUGE_VAL;
+  for (std::size_t i = 0; i < sc.objects.size(); ++i) {
+    const scene::MediumSpec& m = sc.media[std::size_t(sc.objects[i].medium)];
+    for (std::size_t c = 0; c < 3; ++c) {
+      const Medium channel{m.sigma_s[c], m.sigma_a[c], m.g[c], 1};
+      const render::PackLadder l = render::stride_ladder(channel, geometry.largest_free_radius(int(i)));
+      if (l.radius_max < l.radius_min) continue;
+      pack.settings.tau_skip = std::min(pack.settings.tau_skip, l.smallest);
+      pack.settings.tau_ratio = l.ratio;
+      pack.media.push_back({fmt::format("{} ({})", m.name, kChannel[c]), channel.sigma_s, channel.sigma_a, channel.g,
+                            l.radius_min, l.radius_max, sc.objects[i].line});
+    }
+  }
+  return pack;
+}
+
+void write_scene_image(AtomicOutput& out, const render::Image& image, const RenderOptions& o, const render::ImageSettings& s) {
+  H5::Exception::dontPrint();
+  h5::MemoryFile memory;
+  {
+    H5::H5File& file = memory.file();
+    h5::put_attr(file, "method", o.method);
+    h5::put_attr(file, "spp", s.spp);
+    h5::put_attr(file, "seed", std::int64_t(s.seed));
+    h5::put_attr(file, "seconds", image.seconds);
+    h5::put_attr(file, "scene", std::filesystem::path(o.scene).filename().string());
+    H5::Group g = file.createGroup("/image");
+    const std::vector<hsize_t> dims{hsize_t(image.height), hsize_t(image.width), 3};
+    h5::put_dataset(g, "mean", dims, image.mean.data());
+    h5::put_dataset(g, "variance_of_mean", dims, image.variance_of_mean.data());
+  }
+  out.stage(memory.bytes());
+}
+
+std::string scene_stats(const render::Image& image, const PackBuild& build, const render::SceneGeometry& geometry) {
+  nlohmann::ordered_json j = {{"seconds", image.seconds},
+                              {"precompute_seconds", build.seconds},
+                              {"spheres_computed", build.spheres_computed},
+                              {"paths", image.paths},
+                              {"collisions", image.collisions},
+                              {"strides", image.strides},
+                              {"distance_queries", image.distance_queries},
+                              {"shadow_rays", image.shadow_rays},
+                              {"free_radius", geometry.method() == render::FreeRadius::kGrid ? "grid" : "query"},
+                              {"grid_bytes", geometry.grid_bytes()},
+                              {"mean_radiance", {image.mean_radiance(0), image.mean_radiance(1), image.mean_radiance(2)}}};
+  return j.dump(2) + "\n";
+}
+
+}  // namespace
+
+void run_scene_render(const RenderOptions& o, const CLI::App& cmd) {
+  scene::RenderScene sc;
+  try {
+    sc = scene::read_render_scene(o.scene);
+  } catch (const scene::SceneError& e) {
+    fail(e.what());
+  }
+  render::ImageSettings s = image_settings(o, cmd, sc.camera.width, sc.camera.height);
+  RenderOutputs outputs(o);
+  const render::FreeRadius method = o.free_radius == "query" ? render::FreeRadius::kQuery : render::FreeRadius::kGrid;
+  std::unique_ptr<render::SceneGeometry> geometry;
+  try {
+    geometry = std::make_unique<render::SceneGeometry>(sc, method, 256, RunContext{s.run.threads, &interrupted, {}});
+  } catch (const scene::SceneError& e) {
+    fail(e.what());
+  }
+  stop_if_interrupted();
+  PackBuild build;
+  std::vector<PackEntry> pack;
+  if (o.method == "stf") {
+    const scene::Scene needed = stride_scene(sc, *geometry, o.tolerance);
+    if (!o.pack.empty()) pack = read_pack_option(o.pack);
+    else if (!needed.media.empty()) pack = build_pack(needed, o, s.run.threads, build);
+  }
+  const render::ScenePaths paths(sc, *geometry, o.method == "stf" ? &pack : nullptr);
+  ProgressBar bar("render", o.quiet);
+  s.run.cancel = &interrupted, s.run.progress = bar.progress();
+  const render::Image image = render::render_scene(sc, paths, s);
+  bar.finish();
+  stop_if_interrupted();
+  write_scene_image(outputs.image, image, o, s);
+  outputs.finish(image, o.exposure, scene_stats(image, build, *geometry));
+  if (!o.quiet)
+    std::fprintf(stderr, "stf render: %s, %lld paths in %.3g s (%.3g collisions, %.3g strides per path), mean RGB %.4g %.4g %.4g -> %s\n",
+                 o.method.c_str(), (long long)image.paths, image.seconds, double(image.collisions) / double(image.paths),
+                 double(image.strides) / double(image.paths), image.mean_radiance(0), image.mean_radiance(1),
+                 image.mean_radiance(2), o.output.c_str());
+}
+
+}  // namespace stf::cli

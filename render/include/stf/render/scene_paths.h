@@ -1,0 +1,75 @@
+// Camera paths through a render scene, by brute force (every collision tracked) or in shell
+// strides (spheres of a pack wherever one fits inside the object's medium, collisions only in
+// the boundary shell), with the same geometry, boundaries, lights and next-event estimation:
+//  - each path carries one colour channel, whose medium coefficients it sees;
+//  - at every collision it tracks and at every ground hit, a shadow ray toward a point of the
+//    sun's disc, with the transmittance of the index-matched media it crosses (zero through a
+//    dielectric boundary or the ground), combined with the phase function's (or the ground's
+//    cosine) direction by the power heuristic; nothing at a stride's exit, whose direction then
+//    picks up the sun with weight 1;
+//  - deep inside a medium the shadow ray plays Russian roulette against the transmittance bound
+//    exp(-sigma_t free_radius), so brute force does not pay for rays that carry nothing.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include <stf/lookup.h>
+#include <stf/pack.h>
+
+#include "stf/hg.h"
+#include "stf/render/pixel_rng.h"
+#include "stf/render/scene_geometry.h"
+#include "stf/render/tracer.h"
+
+namespace stf::render {
+
+// One object's medium in one channel.
+struct ChannelMedium {
+  double sigma_t = 0, inv_sigma_t = 0, albedo = 0, g = 0;
+  HgParams<double> hg{};
+};
+
+class ScenePaths {
+ public:
+  // Brute force without `pack`; strides through the pack's spheres of each channel's albedo and
+  // g otherwise (a channel without any is tracked by collisions).
+  // `next_event` false: no shadow rays, the sun found only by paths that leave toward it (the
+  // same image, noisier: the tests compare the two).
+  ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geometry, const std::vector<PackEntry>* pack = nullptr,
+             bool next_event = true);
+  ~ScenePaths();
+
+  // The radiance of `channel` arriving at `origin` from direction -`direction`.
+  double radiance(const Vec3& origin, const Vec3& direction, int channel, PixelRng& rng, PathCounters& counters) const;
+
+  const ChannelMedium& medium(int object, int channel) const { return media_[std::size_t(object * 3 + channel)]; }
+  // The spheres a path in `object` strides through in `channel` (null: none).
+  const SphereLookup* spheres(int object, int channel) const;
+
+ private:
+  struct State;
+  double escape(const State& s, int c) const;
+  double sun_sample(const State& s, int c, const Vec3& towards, double& pdf) const;
+  double transmittance(Vec3 x, const Vec3& l, int c) const;
+  void nee_at_collision(State& s, int c, double bound, PixelRng& rng, PathCounters& counters) const;
+  bool ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& rng, PathCounters& counters) const;
+  void cross(State& s, const SurfaceHit& h, PixelRng& rng) const;
+  bool medium_step(State& s, int c, PixelRng& rng, PathCounters& counters) const;
+  bool outside_step(State& s, int c, PixelRng& rng, PathCounters& counters) const;
+
+  const scene::RenderScene& scene_;
+  const SceneGeometry& geometry_;
+  std::vector<ChannelMedium> media_;            // [objects * 3]
+  std::vector<std::shared_ptr<SphereLookup>> lookups_;  // [objects * 3], null where none
+  std::vector<double> ior_;                     // per object
+  Vec3 sun_;
+  bool next_event_ = true;
+  double cos_sun_ = 1, sun_pdf_ = 0;            // the disc's cosine and the uniform pdf over it
+};
+
+// Fresnel reflectance of unpolarised light at a smooth interface, going from index n_i to n_t
+// at incidence cosine cos_i (> 0); 1 past the critical angle.
+double fresnel_dielectric(double cos_i, double n_i, double n_t);
+
+}  // namespace stf::render

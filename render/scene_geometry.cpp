@@ -1,0 +1,131 @@
+#include "stf/render/scene_geometry.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "stf/scene/scene_error.h"
+
+namespace stf::render {
+
+namespace {
+
+using geometry::Bounds;
+
+[[noreturn]] void refuse(const scene::RenderScene& s, int line, const std::string& what) {
+  throw scene::SceneError(s.path + ":" + std::to_string(line) + ": " + what);
+}
+
+geometry::TriangleMesh load_mesh(const scene::RenderScene& s, std::size_t i) {
+  const scene::ObjectSpec& o = s.objects[i];
+  const std::string where = "objects[" + std::to_string(i) + "].mesh: ";
+  geometry::TriangleMesh mesh;
+  try {
+    mesh = geometry::read_obj(o.mesh);
+  } catch (const std::runtime_error& e) {
+    refuse(s, o.line, where + e.what());
+  }
+  if (const std::string why = geometry::mesh_error(mesh); !why.empty()) refuse(s, o.line, where + o.mesh + ": " + why);
+  return geometry::placed(geometry::oriented_outward(std::move(mesh)), o.scale, o.translate);
+}
+
+bool overlap(const Bounds& a, const Bounds& b) {
+  return a.lower.x < b.upper.x && b.lower.x < a.upper.x && a.lower.y < b.upper.y && b.lower.y < a.upper.y &&
+         a.lower.z < b.upper.z && b.lower.z < a.upper.z;
+}
+
+bool contains(const Bounds& b, const Vec3& p) {
+  return p.x >= b.lower.x && p.x <= b.upper.x && p.y >= b.lower.y && p.y <= b.upper.y && p.z >= b.lower.z && p.z <= b.upper.z;
+}
+
+// The sphere's entry or exit along the ray: the first root above 0 of |o + t d - c| = r.
+double sphere_hit(const Vec3& o, const Vec3& d, const Vec3& c, double r) {
+  const Vec3 oc = o - c;
+  const double b = dot(oc, d), q = dot(oc, oc) - r * r, disc = b * b - q;
+  if (disc < 0) return HUGE_VAL;
+  const double root = std::sqrt(disc), near = -b - root, far = -b + root;
+  return near > 0 ? near : (far > 0 ? far : HUGE_VAL);
+}
+
+}  // namespace
+
+SceneGeometry::SceneGeometry(const scene::RenderScene& s, FreeRadius method, int grid_cells, const RunContext& run)
+    : method_(method), ground_(s.ground.present), ground_height_(s.ground.height) {
+  std::vector<geometry::TriangleMesh> meshes;
+  for (std::size_t i = 0; i < s.objects.size(); ++i) {
+    const scene::ObjectSpec& o = s.objects[i];
+    Object obj;
+    if (o.mesh.empty()) {
+      obj.sphere = true, obj.centre = o.translate, obj.radius = o.radius * o.scale, obj.inradius = obj.radius;
+      const Vec3 r{obj.radius, obj.radius, obj.radius};
+      obj.bounds = {obj.centre - r, obj.centre + r};
+    } else {
+      meshes.push_back(load_mesh(s, i));
+      obj.mesh = int(meshes.size()) - 1, obj.bounds = geometry::bounds_of(meshes.back());
+      object_of_mesh_.push_back(int(i));
+    }
+    scale_ = std::max(scale_, obj.bounds.largest_side());
+    objects_.push_back(std::move(obj));
+  }
+  boundary_ = std::make_unique<geometry::Boundary>(std::move(meshes));
+  check_layout(s);
+  for (Object& o : objects_) {
+    if (o.sphere) continue;
+    o.grid = std::make_unique<geometry::DistanceGrid>(*boundary_, o.bounds, grid_cells, run);
+    o.inradius = o.grid->deepest(*boundary_, o.mesh);
+  }
+}
+
+SceneGeometry::~SceneGeometry() = default;
+
+void SceneGeometry::check_layout(const scene::RenderScene& s) const {
+  for (std::size_t i = 0; i < objects_.size(); ++i) {
+    const Bounds& b = objects_[i].bounds;
+    for (std::size_t j = 0; j < i; ++j)
+      if (overlap(b, objects_[j].bounds))
+        refuse(s, s.objects[i].line, fmt::format("objects[{}]: its bounds overlap those of objects[{}]; media must not overlap", i, j));
+    if (ground_ && b.lower.y < ground_height_)
+      refuse(s, s.objects[i].line, fmt::format("objects[{}]: reaches below the ground (y = {:g})", i, ground_height_));
+    if (contains(b, s.camera.position) && (objects_[i].sphere ? length(s.camera.position - objects_[i].centre) < objects_[i].radius
+                                                              : boundary_->inside(s.camera.position, objects_[i].mesh)))
+      refuse(s, s.objects[i].line, fmt::format("objects[{}]: the camera is inside it", i));
+  }
+  if (ground_ && s.camera.position.y <= ground_height_) refuse(s, 1, "camera.position: below the ground");
+}
+
+SurfaceHit SceneGeometry::trace(const Vec3& origin, const Vec3& direction, double t_max) const {
+  SurfaceHit best;
+  best.t = t_max;
+  const geometry::Hit h = boundary_->intersect(origin, direction, t_max);
+  if (h.found) best = {true, h.t, object_of_mesh_[std::size_t(h.object)], h.normal};
+  for (std::size_t i = 0; i < objects_.size(); ++i) {
+    if (!objects_[i].sphere) continue;
+    const double t = sphere_hit(origin, direction, objects_[i].centre, objects_[i].radius);
+    if (t < best.t) best = {true, t, int(i), normalize(origin + t * direction - objects_[i].centre)};
+  }
+  if (ground_ && direction.y < 0) {
+    const double t = (ground_height_ - origin.y) / direction.y;
+    if (t > 0 && t < best.t) best = {true, t, kGround, {0, 1, 0}};
+  }
+  return best;
+}
+
+double SceneGeometry::free_radius(const Vec3& x, int object) const {
+  const Object& o = objects_[std::size_t(object)];
+  if (o.sphere) return std::max(0.0, o.radius - length(x - o.centre));
+  return method_ == FreeRadius::kGrid ? o.grid->lower_bound(x) : boundary_->distance(x);
+}
+
+Vec3 SceneGeometry::spawn(const Vec3& point, const Vec3& n, const Vec3& direction) const {
+  const double margin = 1e-5 * std::max(scale_, std::max({std::abs(point.x), std::abs(point.y), std::abs(point.z)}));
+  return point + (dot(direction, n) >= 0 ? margin : -margin) * n;
+}
+
+std::size_t SceneGeometry::grid_bytes() const {
+  std::size_t bytes = 0;
+  for (const Object& o : objects_) bytes += o.grid ? o.grid->bytes() : 0;
+  return bytes;
+}
+
+}  // namespace stf::render

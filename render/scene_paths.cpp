@@ -1,0 +1,211 @@
+#include "stf/render/scene_paths.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace stf::render {
+
+namespace {
+
+// Below this bound on a collision's transmittance to the sun, its shadow ray is cast with
+// probability bound / kNeeRoulette and weighted up: deep inside a dense medium none is cast.
+constexpr double kNeeRoulette = 0.01;
+// A path that has not ended after this many events (total internal reflection between two
+// faces, say) is ended: its expected share is far below the noise.
+constexpr int kMaxEvents = 1 << 24;
+
+double power_heuristic(double a, double b) { return a * a / (a * a + b * b); }
+
+double phase_density(const ChannelMedium& m, double mu) { return hg_pdf_mu(m.g, mu) / (2 * kPi); }
+
+Vec3 around(const Vec3& axis, double cos_theta, double sin_theta, double u) {
+  double sp, cp;
+  sincos_2pi(u, sp, cp);
+  return Frame::around(axis).to_world({sin_theta * cp, sin_theta * sp, cos_theta});
+}
+
+}  // namespace
+
+struct ScenePaths::State {
+  Vec3 x, w;
+  double throughput = 1, radiance = 0;
+  int inside = -1;           // the object whose medium the path is in, or -1
+  bool after_nee = false;    // heading straight on from a vertex that cast a shadow ray
+  double scatter_pdf = 0;    // that vertex's density (per sr) of the direction w
+  double bound = -1;         // the free radius at x, when known
+};
+
+double fresnel_dielectric(double cos_i, double n_i, double n_t) {
+  const double sin_t2 = (n_i / n_t) * (n_i / n_t) * std::max(0.0, 1 - cos_i * cos_i);
+  if (sin_t2 >= 1) return 1;
+  const double cos_t = std::sqrt(1 - sin_t2);
+  const double rs = (n_i * cos_i - n_t * cos_t) / (n_i * cos_i + n_t * cos_t);
+  const double rp = (n_t * cos_i - n_i * cos_t) / (n_t * cos_i + n_i * cos_t);
+  return 0.5 * (rs * rs + rp * rp);
+}
+
+ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geometry, const std::vector<PackEntry>* pack,
+                       bool next_event)
+    : scene_(scene), geometry_(geometry), sun_(scene.light.sun_direction), next_event_(next_event) {
+  cos_sun_ = std::cos(scene.light.sun_angle * kPi / 180);
+  sun_pdf_ = 1 / (2 * kPi * (1 - cos_sun_));
+  for (const scene::ObjectSpec& o : scene.objects) {
+    ior_.push_back(o.ior);
+    const scene::MediumSpec& spec = scene.media[std::size_t(o.medium)];
+    for (int c = 0; c < 3; ++c) {
+      ChannelMedium m;
+      m.sigma_t = spec.sigma_t(c), m.inv_sigma_t = 1 / m.sigma_t, m.albedo = spec.sigma_s[std::size_t(c)] / m.sigma_t;
+      m.g = spec.g[std::size_t(c)], m.hg = HgParams<double>::make(m.g);
+      media_.push_back(m);
+      std::shared_ptr<SphereLookup> lookup;
+      if (pack) {
+        Medium channel{spec.sigma_s[std::size_t(c)], spec.sigma_a[std::size_t(c)], m.g, 1};
+        const std::vector<PackEntry> mine = entries_for(channel, *pack);
+        if (!mine.empty()) lookup = std::make_shared<SphereLookup>(mine, mine.front().name);
+      }
+      lookups_.push_back(std::move(lookup));
+    }
+  }
+}
+
+ScenePaths::~ScenePaths() = default;
+
+const SphereLookup* ScenePaths::spheres(int object, int channel) const {
+  return lookups_[std::size_t(object * 3 + channel)].get();
+}
+
+double ScenePaths::radiance(const Vec3& origin, const Vec3& direction, int c, PixelRng& rng, PathCounters& counters) const {
+  State s;
+  s.x = origin, s.w = direction;
+  for (int events = 0; events < kMaxEvents; ++events) {
+    const bool goes_on = s.inside >= 0 ? medium_step(s, c, rng, counters) : outside_step(s, c, rng, counters);
+    if (!goes_on || !survives_roulette(s.throughput, rng)) break;
+  }
+  return s.radiance;
+}
+
+double ScenePaths::escape(const State& s, int c) const {
+  double l = scene_.light.sky[std::size_t(c)];
+  if (dot(s.w, sun_) >= cos_sun_)
+    l += scene_.light.sun[std::size_t(c)] * (s.after_nee ? power_heuristic(s.scatter_pdf, sun_pdf_) : 1.0);
+  return l;
+}
+
+double ScenePaths::transmittance(Vec3 x, const Vec3& l, int c) const {
+  // Each crossing either leaves a medium (its chord attenuates) or enters one.
+  double t = 1;
+  for (int crossings = 0; crossings < 256; ++crossings) {
+    const SurfaceHit h = geometry_.trace(x, l);
+    if (!h.found) return t;
+    if (h.object == kGround || ior_[std::size_t(h.object)] != 1) return 0;  // opaque or specular
+    if (dot(l, h.normal) > 0) t *= std::exp(-medium(h.object, c).sigma_t * h.t);
+    x = geometry_.spawn(x + h.t * l, h.normal, l);
+  }
+  return 0;
+}
+
+void ScenePaths::nee_at_collision(State& s, int c, double bound, PixelRng& rng, PathCounters& counters) const {
+  if (!next_event_ || ior_[std::size_t(s.inside)] != 1) return;  // behind a dielectric no shadow ray passes
+  const ChannelMedium& m = medium(s.inside, c);
+  const double most = std::exp(-m.sigma_t * bound);  // no direction reaches the boundary sooner
+  double weight = 1;
+  if (most < kNeeRoulette) {
+    if (rng.uniform() * kNeeRoulette >= most) return;
+    weight = kNeeRoulette / most;
+  }
+  const double ct = 1 - rng.uniform() * (1 - cos_sun_);
+  const Vec3 l = around(sun_, ct, std::sqrt(std::max(0.0, 1 - ct * ct)), rng.uniform());
+  const double f = phase_density(m, dot(s.w, l));
+  const double t = transmittance(s.x, l, c);
+  ++counters.shadow_rays;
+  if (t > 0)
+    s.radiance += s.throughput * weight * f * t * scene_.light.sun[std::size_t(c)] / sun_pdf_ * power_heuristic(sun_pdf_, f);
+}
+
+bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& counters) const {
+  const ChannelMedium& m = medium(s.inside, c);
+  if (s.bound < 0) s.bound = geometry_.free_radius(s.x, s.inside), ++counters.distance_queries;
+  if (const SphereLookup* spheres = this->spheres(s.inside, c)) {
+    double r;
+    if (const int k = spheres->find(m.sigma_t, s.bound, r); k >= 0) {
+      const StrideForm& form = spheres->stride_form(k);
+      const Stride e = form.jump(s.x, s.w, r, [&rng] { return rng.uniform(); });
+      s.x = e.point, s.w = e.direction, s.bound = -1;
+      s.throughput *= form.escape_probability();
+      if (e.component != kUncollided) s.after_nee = false;  // no shadow ray from a stride's exit
+      ++counters.strides;
+      return true;
+    }
+  }
+  const double t = -std::log(rng.uniform_open0()) * m.inv_sigma_t;
+  if (t >= s.bound) {  // the flight may reach the boundary
+    const SurfaceHit h = geometry_.trace(s.x, s.w, t);
+    if (h.found) {
+      s.x += h.t * s.w, s.bound = -1;
+      cross(s, h, rng);
+      return true;
+    }
+  }
+  s.x += t * s.w;
+  ++counters.collisions;
+  s.throughput *= m.albedo;
+  s.bound = geometry_.free_radius(s.x, s.inside), ++counters.distance_queries;
+  nee_at_collision(s, c, s.bound, rng, counters);
+  const CosSin<double> cs = sample_hg(m.hg, rng.uniform());
+  s.scatter_pdf = phase_density(m, cs.cos_theta), s.after_nee = next_event_;
+  s.w = around(s.w, cs.cos_theta, cs.sin_theta, rng.uniform());
+  return true;
+}
+
+void ScenePaths::cross(State& s, const SurfaceHit& h, PixelRng& rng) const {
+  const bool leaving = dot(s.w, h.normal) > 0;
+  const double eta = ior_[std::size_t(h.object)];
+  if (eta != 1) {
+    // The normal on the side the path comes from, and Fresnel's choice of the two ways on.
+    const Vec3 n = leaving ? -h.normal : h.normal;
+    const double cos_i = -dot(s.w, n), n_i = leaving ? eta : 1.0, n_t = leaving ? 1.0 : eta;
+    s.after_nee = false;  // a specular event: no shadow ray could have reached on along this path
+    if (rng.uniform() < fresnel_dielectric(cos_i, n_i, n_t)) {
+      s.w = s.w + 2 * cos_i * n;
+      s.x = geometry_.spawn(s.x, h.normal, s.w);
+      return;
+    }
+    const double r = n_i / n_t, cos_t = std::sqrt(std::max(0.0, 1 - r * r * (1 - cos_i * cos_i)));
+    s.w = normalize(r * s.w + (r * cos_i - cos_t) * n);
+  }
+  s.inside = leaving ? -1 : h.object;
+  s.x = geometry_.spawn(s.x, h.normal, s.w);
+}
+
+bool ScenePaths::ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& rng, PathCounters& counters) const {
+  const double albedo = scene_.ground.albedo[std::size_t(c)];
+  if (albedo <= 0) return false;
+  const double ct = 1 - rng.uniform() * (1 - cos_sun_);
+  const Vec3 l = around(sun_, ct, std::sqrt(std::max(0.0, 1 - ct * ct)), rng.uniform());
+  if (next_event_ && l.y > 0) {
+    const double t = transmittance(geometry_.spawn(s.x, h.normal, l), l, c), p = l.y / kPi;
+    ++counters.shadow_rays;
+    if (t > 0)
+      s.radiance += s.throughput * albedo * p * t * scene_.light.sun[std::size_t(c)] / sun_pdf_ * power_heuristic(sun_pdf_, p);
+  }
+  const double u = rng.uniform(), cos_o = std::sqrt(1 - u);  // cosine-weighted
+  s.w = around(h.normal, cos_o, std::sqrt(u), rng.uniform());
+  s.scatter_pdf = cos_o / kPi, s.after_nee = next_event_;
+  s.throughput *= albedo;
+  s.x = geometry_.spawn(s.x, h.normal, s.w);
+  return true;
+}
+
+bool ScenePaths::outside_step(State& s, int c, PixelRng& rng, PathCounters& counters) const {
+  const SurfaceHit h = geometry_.trace(s.x, s.w);
+  if (!h.found) {
+    s.radiance += s.throughput * escape(s, c);
+    return false;
+  }
+  s.x += h.t * s.w, s.bound = -1;
+  if (h.object == kGround) return ground_bounce(s, c, h, rng, counters);
+  cross(s, h, rng);
+  return true;
+}
+
+}  // namespace stf::render

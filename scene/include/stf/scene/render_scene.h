@@ -1,0 +1,63 @@
+// A render scene (`stf render SCENE.toml`, layout in docs/formats.md "Render scenes"): a pinhole
+// camera, a sky and a sun, media in RGB, objects (closed OBJ meshes or analytic spheres) each
+// filled with one medium behind an index-matched or smooth dielectric boundary, and an
+// optional diffuse ground plane.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "stf/scene/presets.h"
+#include "stf/vec3.h"
+
+namespace stf::scene {
+
+struct CameraSpec {
+  Vec3 position{0, 0, 3}, look_at{0, 0, 0}, up{0, 1, 0};
+  double fov = 30;  // vertical, degrees
+  int width = 256, height = 256;
+};
+
+struct LightSpec {
+  Rgb sky{1, 1, 1};           // uniform radiance from every direction
+  Vec3 sun_direction{1, 1, -1};  // towards the sun, unit after reading
+  Rgb sun{50, 50, 50};        // radiance within the sun's disc, added to the sky's
+  double sun_angle = 5;       // half-angle of the disc, degrees
+};
+
+struct MediumSpec {
+  std::string name;
+  Rgb sigma_s{}, sigma_a{}, g{};  // per scene unit
+  double sigma_t(int c) const { return sigma_s[std::size_t(c)] + sigma_a[std::size_t(c)]; }
+};
+
+struct ObjectSpec {
+  std::string mesh;       // path of an OBJ file (resolved against the scene's folder), or ""
+  double radius = 1;      // the analytic sphere's, when mesh is ""
+  double scale = 1;
+  Vec3 translate;
+  int medium = 0;         // index into RenderScene::media
+  double ior = 1;         // 1: index matched; above: a smooth dielectric
+  int line = 0;           // where the object is in the file, for messages
+};
+
+struct GroundSpec {
+  bool present = false;
+  double height = 0;  // the plane y = height
+  Rgb albedo{0.5, 0.5, 0.5};
+};
+
+struct RenderScene {
+  std::string path;
+  CameraSpec camera;
+  LightSpec light;
+  std::vector<MediumSpec> media;
+  std::vector<ObjectSpec> objects;
+  GroundSpec ground;
+};
+
+// Reads and checks a render scene; throws SceneError "file:line: key: why" (unknown keys,
+// values of the wrong type or range, unknown presets or media, missing mesh files).
+RenderScene read_render_scene(const std::string& path);
+
+}  // namespace stf::scene

@@ -1,0 +1,167 @@
+#include "stf/scene/render_scene.h"
+
+#include <cmath>
+#include <filesystem>
+#include <set>
+
+#include "toml_values.h"
+
+namespace stf::scene {
+
+namespace {
+
+Vec3 vec3(const toml::value& v, const std::string& name) {
+  expect(v.is_array() && v.as_array().size() == 3, v, name + ": expected [x, y, z]");
+  const auto& a = v.as_array();
+  const Vec3 out{number(a[0], name), number(a[1], name), number(a[2], name)};
+  expect(std::isfinite(out.x) && std::isfinite(out.y) && std::isfinite(out.z), v, name + ": must be finite");
+  return out;
+}
+
+// One number for all three channels, or [r, g, b]; each in [low, high] (closed unless
+// `open_high`).
+Rgb rgb(const toml::value& v, const std::string& name, double low, double high, bool open_high = false) {
+  Rgb out{};
+  if (v.is_array()) {
+    expect(v.as_array().size() == 3, v, name + ": expected one number or [r, g, b]");
+    for (std::size_t c = 0; c < 3; ++c) out[c] = number(v.as_array()[c], name);
+  } else {
+    out.fill(number(v, name));
+  }
+  for (double x : out)
+    expect(x >= low && (open_high ? x < high : x <= high) && std::isfinite(x), v,
+           name + ": must be in [" + fmt::format("{:g}", low) + ", " + fmt::format("{:g}", high) + (open_high ? ")" : "]"));
+  return out;
+}
+
+double bounded(const toml::value& t, const std::string& key, const std::string& where, double low, double high) {
+  const double x = number(t.at(key), where + key);
+  expect(x >= low && x <= high, t.at(key), where + key + ": must be in [" + fmt::format("{:g}", low) + ", " + fmt::format("{:g}", high) + "]");
+  return x;
+}
+
+CameraSpec read_camera(const toml::value& t) {
+  check_keys(t, "camera.", {"position", "look_at", "up", "fov", "width", "height"});
+  CameraSpec c;
+  if (t.contains("position")) c.position = vec3(t.at("position"), "camera.position");
+  if (t.contains("look_at")) c.look_at = vec3(t.at("look_at"), "camera.look_at");
+  if (t.contains("up")) c.up = vec3(t.at("up"), "camera.up");
+  if (t.contains("fov")) c.fov = bounded(t, "fov", "camera.", 0.1, 170);
+  if (t.contains("width")) c.width = int(bounded(t, "width", "camera.", 1, 8192));
+  if (t.contains("height")) c.height = int(bounded(t, "height", "camera.", 1, 8192));
+  const Vec3 view = c.look_at - c.position;
+  expect(length(view) > 0, t, "camera: position and look_at must differ");
+  expect(length(cross(view, c.up)) > 1e-9 * length(view) * length(c.up), t, "camera.up: must not be parallel to the view");
+  return c;
+}
+
+LightSpec read_light(const toml::value& t) {
+  check_keys(t, "light.", {"sky", "sun_direction", "sun_radiance", "sun_angle", "environment"});
+  expect(!t.contains("environment"), t.contains("environment") ? t.at("environment") : t,
+         "light.environment: environment maps are not supported; give sky, sun_direction and sun_radiance");
+  LightSpec l;
+  if (t.contains("sky")) l.sky = rgb(t.at("sky"), "light.sky", 0, 1e6);
+  if (t.contains("sun_direction")) l.sun_direction = vec3(t.at("sun_direction"), "light.sun_direction");
+  expect(length(l.sun_direction) > 0, t, "light.sun_direction: must not be 0");
+  l.sun_direction = normalize(l.sun_direction);
+  if (t.contains("sun_radiance")) l.sun = rgb(t.at("sun_radiance"), "light.sun_radiance", 0, 1e9);
+  if (t.contains("sun_angle")) l.sun_angle = bounded(t, "sun_angle", "light.", 0.05, 45);
+  return l;
+}
+
+MediumSpec read_medium(const toml::value& t, std::size_t i) {
+  const std::string where = "media[" + std::to_string(i) + "].";
+  expect(t.is_table(), t, where + ": expected a table");
+  check_keys(t, where, {"name", "sigma_s", "sigma_a", "g", "preset", "density"});
+  MediumSpec m;
+  m.name = text(require(t, "name", where), where + "name");
+  if (t.contains("preset")) {
+    expect(!t.contains("sigma_s") && !t.contains("sigma_a") && !t.contains("g"), t.at("preset"),
+           where + "preset: give either a preset or sigma_s, sigma_a and g");
+    const std::string name = text(t.at("preset"), where + "preset");
+    const MeasuredMedium* p = find_measured_medium(name);
+    std::string known;
+    for (const MeasuredMedium& k : measured_media()) known += std::string(known.empty() ? "" : ", ") + k.name;
+    expect(p != nullptr, t.at("preset"), where + "preset: unknown medium '" + name + "' (known: " + known + ")");
+    const double density = t.contains("density") ? bounded(t, "density", where, 1e-9, 1e9) : 1.0;
+    for (std::size_t c = 0; c < 3; ++c) m.sigma_s[c] = density * p->sigma_s[c], m.sigma_a[c] = density * p->sigma_a[c];
+    m.g = p->g;
+    return m;
+  }
+  expect(!t.contains("density"), t.contains("density") ? t.at("density") : t, where + "density: scales a preset only");
+  m.sigma_s = rgb(require(t, "sigma_s", where), where + "sigma_s", 0, 1e7);
+  m.sigma_a = rgb(require(t, "sigma_a", where), where + "sigma_a", 0, 1e7);
+  m.g = rgb(require(t, "g", where), where + "g", -0.999, 0.999);
+  for (int c = 0; c < 3; ++c) expect(m.sigma_t(c) > 0, t, where + "sigma_s, sigma_a: must not both be 0 in a channel");
+  return m;
+}
+
+ObjectSpec read_object(const toml::value& t, std::size_t i, const RenderScene& s) {
+  const std::string where = "objects[" + std::to_string(i) + "].";
+  expect(t.is_table(), t, where + ": expected a table");
+  check_keys(t, where, {"mesh", "shape", "radius", "scale", "translate", "medium", "ior"});
+  ObjectSpec o;
+  o.line = int(t.location().line());
+  expect(t.contains("mesh") != t.contains("shape"), t, where + ": give either mesh = \"FILE.obj\" or shape = \"sphere\"");
+  if (t.contains("mesh")) {
+    const std::filesystem::path file = std::filesystem::path(s.path).parent_path() / text(t.at("mesh"), where + "mesh");
+    expect(std::filesystem::is_regular_file(file), t.at("mesh"), where + "mesh: no such file: " + file.string());
+    o.mesh = file.string();
+    expect(!t.contains("radius"), t.contains("radius") ? t.at("radius") : t, where + "radius: for shape = \"sphere\" only");
+  } else {
+    expect(text(t.at("shape"), where + "shape") == "sphere", t.at("shape"), where + "shape: only \"sphere\" is known");
+    if (t.contains("radius")) o.radius = bounded(t, "radius", where, 1e-6, 1e6);
+  }
+  if (t.contains("scale")) o.scale = bounded(t, "scale", where, 1e-6, 1e6);
+  if (t.contains("translate")) o.translate = vec3(t.at("translate"), where + "translate");
+  if (t.contains("ior")) o.ior = bounded(t, "ior", where, 1, 4);
+  const std::string medium = text(require(t, "medium", where), where + "medium");
+  o.medium = -1;
+  for (std::size_t k = 0; k < s.media.size(); ++k)
+    if (s.media[k].name == medium) o.medium = int(k);
+  expect(o.medium >= 0, t.at("medium"), where + "medium: no [[media]] named '" + medium + "'");
+  return o;
+}
+
+GroundSpec read_ground(const toml::value& t) {
+  check_keys(t, "ground.", {"height", "albedo"});
+  GroundSpec g;
+  g.present = true;
+  if (t.contains("height")) g.height = bounded(t, "height", "ground.", -1e6, 1e6);
+  if (t.contains("albedo")) g.albedo = rgb(t.at("albedo"), "ground.albedo", 0, 1);
+  return g;
+}
+
+const toml::value& table_at(const toml::value& root, const std::string& key) {
+  expect(root.at(key).is_table(), root.at(key), key + ": expected a table");
+  return root.at(key);
+}
+
+const toml::array& array_at(const toml::value& root, const std::string& key, const std::string& what) {
+  if (!root.contains(key) || !root.at(key).is_array() || root.at(key).as_array().empty())
+    error_at(root.contains(key) ? root.at(key) : root, key + ": the scene needs at least one [[" + key + "]] table (" + what + ")");
+  return root.at(key).as_array();
+}
+
+}  // namespace
+
+RenderScene read_render_scene(const std::string& path) {
+  const toml::value root = parse_toml(path);
+  RenderScene s;
+  s.path = path;
+  check_keys(root, "", {"camera", "light", "media", "objects", "ground"});
+  if (root.contains("camera")) s.camera = read_camera(table_at(root, "camera"));
+  if (root.contains("light")) s.light = read_light(table_at(root, "light"));
+  if (root.contains("ground")) s.ground = read_ground(table_at(root, "ground"));
+  const auto& media = array_at(root, "media", "name, and sigma_s, sigma_a and g or a preset");
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < media.size(); ++i) {
+    s.media.push_back(read_medium(media[i], i));
+    expect(names.insert(s.media.back().name).second, media[i], "media[" + std::to_string(i) + "].name: used twice");
+  }
+  const auto& objects = array_at(root, "objects", "a mesh or shape, and a medium");
+  for (std::size_t i = 0; i < objects.size(); ++i) s.objects.push_back(read_object(objects[i], i, s));
+  return s;
+}
+
+}  // namespace stf::scene

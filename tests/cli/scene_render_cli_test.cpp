@@ -1,0 +1,106 @@
+// `stf render SCENE.toml` (docs/render.md "Scenes", docs/formats.md "Render scenes"): the strided
+// image of a mesh in colour agrees with brute force, the image layout, and bad scenes.
+#include <H5Cpp.h>
+
+#include "cli_fixture.h"
+#include "image_compare.h"
+#include "stf/core/h5io.h"
+
+namespace {
+
+// Three channels of one albedo (0.99) and g (0.5) with sigma_t 8, 4 and 16: the tau 2 and 4
+// spheres of tests/cli/render_scene.toml's pack serve all three at different radii.
+const std::string kScene = R"([camera]
+position = [0, 0.5, 3]
+look_at = [0, 0, 0]
+fov = 40
+width = 24
+height = 24
+[light]
+sky = [0.6, 0.7, 0.8]
+sun_direction = [1, 1.5, 0.5]
+sun_radiance = 30
+[[media]]
+name = "grey"
+sigma_s = [7.92, 3.96, 15.84]
+sigma_a = [0.08, 0.04, 0.16]
+g = 0.5
+[[objects]]
+mesh = ")" + std::string(STF_SOURCE_DIR) + R"(/data/scenes/meshes/icosphere.obj"
+scale = 1.6
+medium = "grey"
+[ground]
+height = -0.9
+albedo = 0.5
+)";
+
+struct Rendered {
+  std::vector<double> mean, variance_of_mean;
+};
+
+Rendered read_rgb(const std::string& path, hsize_t h, hsize_t w) {
+  H5::H5File f(path, H5F_ACC_RDONLY);
+  return {stf::h5::get_dataset(f, "/image/mean", {h, w, 3}), stf::h5::get_dataset(f, "/image/variance_of_mean", {h, w, 3})};
+}
+
+class SceneRenderCli : public Cli {
+ protected:
+  std::string scene() {
+    std::ofstream(out("scene.toml")) << kScene;
+    return out("scene.toml");
+  }
+};
+
+TEST_F(SceneRenderCli, StridedMeshInColourAgreesWithBruteForce) {
+  const std::string common = "render " + scene() + " --spp 600 --quiet ";
+  Result b = stf(common + "--seed 1 --method brute -o " + out("b.h5"));
+  ASSERT_EQ(b.status, 0) << b.err;
+  Result s = stf(common + "--seed 2 --method stf --pack " + std::string(STF_RENDER_PACK) + " -o " + out("s.h5") +
+                 " --json " + out("s.json"));
+  ASSERT_EQ(s.status, 0) << s.err;
+  std::ifstream json(out("s.json"));
+  const std::string stats((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(stats.find("\"strides\": 0,"), std::string::npos) << stats;
+  const Rendered rb = read_rgb(out("b.h5"), 24, 24), rs = read_rgb(out("s.h5"), 24, 24);
+  const ImageComparison r = compare_images(rb.mean, rb.variance_of_mean, rs.mean, rs.variance_of_mean, 24, 24, 3, 4);
+  EXPECT_GT(r.blocks, 90);
+  EXPECT_LT(r.max_block_z, 4.5);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_LT(std::abs(r.mean_z[std::size_t(c)]), 4.5) << c;
+    EXPECT_NEAR(r.mean_ratio[std::size_t(c)], 1, 0.01) << c;
+  }
+}
+
+TEST_F(SceneRenderCli, WritesRgbLayoutAndImages) {
+  Result r = stf("render " + scene() + " --spp 3 --width 10 --height 6 --method brute --quiet -o " + out("i.h5") +
+                 " --exr " + out("i.exr") + " --png " + out("i.png"));
+  ASSERT_EQ(r.status, 0) << r.err;
+  H5::H5File f(out("i.h5"), H5F_ACC_RDONLY);
+  EXPECT_EQ(stf::h5::dataset_shape(f, "/image/mean"), (std::vector<hsize_t>{6, 10, 3}));
+  EXPECT_EQ(stf::h5::dataset_shape(f, "/image/variance_of_mean"), (std::vector<hsize_t>{6, 10, 3}));
+  EXPECT_EQ(stf::h5::get_string(f, "scene"), "scene.toml");
+  EXPECT_EQ(stf::h5::get_string(f, "method"), "brute");
+  EXPECT_GT(fs::file_size(out("i.exr")), 0u);
+  EXPECT_GT(fs::file_size(out("i.png")), 0u);
+}
+
+TEST_F(SceneRenderCli, BadScenesAndFlagsAreOneLineAndNoFile) {
+  std::ofstream(out("bad.toml")) << "[[media]]\nname = \"m\"\nsigma_s = 1\nsigma_a = 0.1\ng = 0.5\n"
+                                    "[[objects]]\nshape = \"cube\"\nmedium = \"m\"\n";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"render " + out("bad.toml") + " --spp 1 --method brute", "objects[0].shape"},
+      {"render " + scene() + " --spp 1 --method brute --sigma-s 3", "--sigma-s"},
+      {"render " + scene() + " --spp 1 --method brute --free-radius exact", "--free-radius"},
+      {"render --spp 1 --method brute", "scene file"},
+  };
+  for (const auto& [args, names] : cases) {
+    Result r = stf(args + " -o " + out("i.h5") + " --png " + out("i.png"));
+    EXPECT_EQ(r.status, 2) << args << "\n" << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << args << "\n" << r.err;
+    EXPECT_NE(r.err.find(names), std::string::npos) << args << "\n" << r.err;
+    EXPECT_FALSE(fs::exists(out("i.h5"))) << args;
+    EXPECT_FALSE(fs::exists(out("i.png"))) << args;
+  }
+}
+
+}  // namespace
