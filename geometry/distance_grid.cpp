@@ -28,8 +28,7 @@ DistanceGrid::DistanceGrid(const Boundary& boundary, const Bounds& region, int c
   n_[2] = std::max(1, int(std::ceil(extent.z / cell_)));
   // The centre a query computes may differ from the one measured here by rounding.
   slack_ = 1e-12 * (region.largest_side() + length(region.lower) + length(region.upper));
-  int nc[3];
-  const std::vector<double> far = coarse(boundary, run, nc);
+  coarse_ = coarse(boundary, run);
   std::vector<double> near(std::size_t(n_[0]) * std::size_t(n_[1]) * std::size_t(n_[2]), HUGE_VAL);
   rasterise_band(boundary, near, run);
   value_.resize(near.size());
@@ -44,12 +43,13 @@ DistanceGrid::DistanceGrid(const Boundary& boundary, const Bounds& region, int c
         }
         const int ci = i / kCoarse, cj = j / kCoarse, ck = k / kCoarse;
         const Vec3 c = origin_ + big * Vec3{ci + 0.5, cj + 0.5, ck + 0.5};
-        const double d = far[(std::size_t(ck) * std::size_t(nc[1]) + std::size_t(cj)) * std::size_t(nc[0]) + std::size_t(ci)];
+        const double d = coarse_[(std::size_t(ck) * std::size_t(nc_[1]) + std::size_t(cj)) * std::size_t(nc_[0]) + std::size_t(ci)];
         value_[at] = rounded_down(std::max(band, d - length(centre(i, j, k) - c)) * (1 - 1e-12));
       }
 }
 
-std::vector<double> DistanceGrid::coarse(const Boundary& boundary, const RunContext& run, int (&nc)[3]) const {
+std::vector<double> DistanceGrid::coarse(const Boundary& boundary, const RunContext& run) {
+  int (&nc)[3] = nc_;
   for (int a = 0; a < 3; ++a) nc[a] = (n_[a] + kCoarse - 1) / kCoarse;
   std::vector<double> d(std::size_t(nc[0]) * std::size_t(nc[1]) * std::size_t(nc[2]));
   const double big = kCoarse * cell_;
@@ -90,20 +90,16 @@ void DistanceGrid::rasterise_band(const Boundary& boundary, std::vector<double>&
 }
 
 double DistanceGrid::deepest(const Boundary& boundary, int mesh) const {
-  // The cells from the largest value down, until one inside the mesh: outside a concave mesh
-  // (the hole of a torus) values may be larger than any inside.
-  std::vector<std::size_t> order(value_.size());
+  // The coarse cells from the largest distance down, until one whose centre is inside the mesh:
+  // outside a concave mesh (the hole of a torus) distances may be larger than any inside.
+  std::vector<std::size_t> order(coarse_.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-  const std::size_t take = std::min<std::size_t>(order.size(), 4096);
-  for (std::size_t first = 0; first < order.size(); first += take) {
-    const std::size_t last = std::min(order.size(), first + take);
-    std::partial_sort(order.begin() + std::ptrdiff_t(first), order.begin() + std::ptrdiff_t(last), order.end(),
-                      [&](std::size_t a, std::size_t b) { return value_[a] > value_[b]; });
-    for (std::size_t n = first; n < last; ++n) {
-      const std::size_t at = order[n], plane = std::size_t(n_[0]) * std::size_t(n_[1]);
-      const int k = int(at / plane), j = int(at % plane / std::size_t(n_[0])), i = int(at % std::size_t(n_[0]));
-      if (boundary.inside(centre(i, j, k), mesh)) return double(value_[at]);
-    }
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return coarse_[a] > coarse_[b]; });
+  const double big = kCoarse * cell_;
+  const std::size_t row = std::size_t(nc_[0]), plane = row * std::size_t(nc_[1]);
+  for (std::size_t at : order) {
+    const Vec3 c = origin_ + big * Vec3{double(at % row) + 0.5, double(at % plane / row) + 0.5, double(at / plane) + 0.5};
+    if (boundary.inside(c, mesh)) return coarse_[at];
   }
   return 0;
 }

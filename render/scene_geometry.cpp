@@ -117,6 +117,11 @@ double SceneGeometry::free_radius(const Vec3& x, int object) const {
   return method_ == FreeRadius::kGrid ? o.grid->lower_bound(x) : boundary_->distance(x);
 }
 
+double SceneGeometry::tight_free_radius(const Vec3& x, int object) const {
+  const Object& o = objects_[std::size_t(object)];
+  return o.grid && method_ == FreeRadius::kGrid ? o.grid->tight_lower_bound(x) : free_radius(x, object);
+}
+
 Vec3 SceneGeometry::spawn(const Vec3& point, const Vec3& n, const Vec3& direction) const {
   const double margin = 1e-5 * std::max(scale_, std::max({std::abs(point.x), std::abs(point.y), std::abs(point.z)}));
   return point + (dot(direction, n) >= 0 ? margin : -margin) * n;

@@ -56,13 +56,15 @@ ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geo
       ChannelMedium m;
       m.sigma_t = spec.sigma_t(c), m.inv_sigma_t = 1 / m.sigma_t, m.albedo = spec.sigma_s[std::size_t(c)] / m.sigma_t;
       m.g = spec.g[std::size_t(c)], m.hg = HgParams<double>::make(m.g);
-      media_.push_back(m);
       std::shared_ptr<SphereLookup> lookup;
       if (pack) {
         Medium channel{spec.sigma_s[std::size_t(c)], spec.sigma_a[std::size_t(c)], m.g, 1};
         const std::vector<PackEntry> mine = entries_for(channel, *pack);
         if (!mine.empty()) lookup = std::make_shared<SphereLookup>(mine, mine.front().name);
       }
+      m.refresh_below = std::log(1 / kNeeRoulette) * m.inv_sigma_t;
+      if (lookup) m.refresh_below = std::max(m.refresh_below, lookup->tau(lookup->size() - 1) * m.inv_sigma_t);
+      media_.push_back(m);
       lookups_.push_back(std::move(lookup));
     }
   }
@@ -127,7 +129,12 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
   if (s.bound < 0) s.bound = geometry_.free_radius(s.x, s.inside), ++counters.distance_queries;
   if (const SphereLookup* spheres = this->spheres(s.inside, c)) {
     double r;
-    if (const int k = spheres->find(m.sigma_t, s.bound, r); k >= 0) {
+    int k = spheres->find(m.sigma_t, s.bound, r);
+    if (k < 0 && geometry_.method() == FreeRadius::kGrid) {  // the one-cell bound fits none: look closer
+      s.bound = std::max(s.bound, geometry_.tight_free_radius(s.x, s.inside)), ++counters.distance_queries;
+      k = spheres->find(m.sigma_t, s.bound, r);
+    }
+    if (k >= 0) {
       const StrideForm& form = spheres->stride_form(k);
       const Stride e = form.jump(s.x, s.w, r, [&rng] { return rng.uniform(); });
       s.x = e.point, s.w = e.direction, s.bound = -1;
@@ -138,6 +145,8 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
     }
   }
   const double t = -std::log(rng.uniform_open0()) * m.inv_sigma_t;
+  if (t >= s.bound && geometry_.method() == FreeRadius::kGrid)  // before a ray, a closer look
+    s.bound = std::max(s.bound, geometry_.tight_free_radius(s.x, s.inside)), ++counters.distance_queries;
   if (t >= s.bound) {  // the flight may reach the boundary
     const SurfaceHit h = geometry_.trace(s.x, s.w, t);
     if (h.found) {
@@ -149,7 +158,8 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
   s.x += t * s.w;
   ++counters.collisions;
   s.throughput *= m.albedo;
-  s.bound = geometry_.free_radius(s.x, s.inside), ++counters.distance_queries;
+  if (s.bound - t >= m.refresh_below) s.bound -= t;
+  else s.bound = geometry_.free_radius(s.x, s.inside), ++counters.distance_queries;
   nee_at_collision(s, c, s.bound, rng, counters);
   const CosSin<double> cs = sample_hg(m.hg, rng.uniform());
   s.scatter_pdf = phase_density(m, cs.cos_theta), s.after_nee = next_event_;

@@ -176,6 +176,9 @@ TEST(Boundary, GridBoundIsNeverAboveTheTrueDistance) {
     for (const Vec3& p : points) {
       const double exact = brute_distance(m, p), g = grid.lower_bound(p);
       EXPECT_LE(g, exact) << name;
+      const double tight = grid.tight_lower_bound(p);
+      EXPECT_LE(tight, exact) << name;
+      EXPECT_GE(tight, g) << name;
       // Exact at the centres within the band, so within a cell's diagonal there; deeper within
       // a coarse cell's.
       EXPECT_GE(g, exact - std::sqrt(3.0) * (exact < grid.band() ? 1 : 5) * grid.cell()) << name;

@@ -36,10 +36,27 @@ class DistanceGrid {
     return std::max(0.0, d - length(x - centre) - slack_);
   }
 
+  // The largest of the bounds of the eight cells whose centres surround x: near a surface one of
+  // them lies deeper along its normal than x, and its bound is nearly the distance itself. Eight
+  // loads and square roots, for where the one-cell bound is too small for a sphere.
+  double tight_lower_bound(const Vec3& x) const {
+    const double fx = (x.x - origin_.x) * inv_cell_ - 0.5, fy = (x.y - origin_.y) * inv_cell_ - 0.5,
+                 fz = (x.z - origin_.z) * inv_cell_ - 0.5;
+    if (!(fx >= 0 && fy >= 0 && fz >= 0 && fx < n_[0] - 1 && fy < n_[1] - 1 && fz < n_[2] - 1)) return lower_bound(x);
+    const int i = int(fx), j = int(fy), k = int(fz);
+    double best = 0;
+    for (int c = 0; c < 8; ++c) {
+      const int ci = i + (c & 1), cj = j + ((c >> 1) & 1), ck = k + (c >> 2);
+      best = std::max(best, double(value_[index(ci, cj, ck)]) - length(x - centre(ci, cj, ck)));
+    }
+    return std::max(0.0, best - slack_);
+  }
+
   std::size_t bytes() const { return value_.size() * sizeof(float); }
   double cell() const { return cell_; }
   double band() const { return 3 * cell_; }
-  // The largest value over cells whose centre is inside mesh k of the boundary.
+  // The radius of the largest ball inside mesh k of the boundary, to within a coarse cell's
+  // half-diagonal: the largest exact distance at a coarse centre inside it.
   double deepest(const Boundary& boundary, int mesh) const;
 
  private:
@@ -47,13 +64,15 @@ class DistanceGrid {
     return (std::size_t(k) * std::size_t(n_[1]) + std::size_t(j)) * std::size_t(n_[0]) + std::size_t(i);
   }
   Vec3 centre(int i, int j, int k) const { return origin_ + cell_ * Vec3{i + 0.5, j + 0.5, k + 0.5}; }
-  std::vector<double> coarse(const Boundary& boundary, const RunContext& run, int (&nc)[3]) const;
+  std::vector<double> coarse(const Boundary& boundary, const RunContext& run);
   void rasterise_band(const Boundary& boundary, std::vector<double>& near, const RunContext& run) const;
 
   Vec3 origin_;
   double cell_ = 0, inv_cell_ = 0, slack_ = 0;
   int n_[3] = {0, 0, 0};
-  std::vector<float> value_;  // v at cell centres, rounded down, [z][y][x]
+  std::vector<float> value_;    // v at cell centres, rounded down, [z][y][x]
+  int nc_[3] = {0, 0, 0};
+  std::vector<double> coarse_;  // exact distances at the coarse cells' centres
 };
 
 }  // namespace stf::geometry

@@ -39,6 +39,9 @@ class SceneGeometry {
   SurfaceHit trace(const Vec3& origin, const Vec3& direction, double t_max = HUGE_VAL) const;
   // A lower bound of the distance from x (inside `object`) to the object's boundary.
   double free_radius(const Vec3& x, int object) const;
+  // A bound at least as large, dearer: the grid's eight-cell bound (the same as free_radius for
+  // queries and spheres).
+  double tight_free_radius(const Vec3& x, int object) const;
   // A point just off the surface at `point` (normal n) on the side `direction` heads for.
   Vec3 spawn(const Vec3& point, const Vec3& n, const Vec3& direction) const;
 

@@ -27,6 +27,10 @@ namespace stf::render {
 // One object's medium in one channel.
 struct ChannelMedium {
   double sigma_t = 0, inv_sigma_t = 0, albedo = 0, g = 0;
+  // After a collision the free radius is the one before less the flight (the distance is
+  // 1-Lipschitz) while that is at least this: the largest sphere's radius, or the depth below
+  // which shadow rays start to count (ln(1 / kNeeRoulette) / sigma_t).
+  double refresh_below = 0;
   HgParams<double> hg{};
 };
 

@@ -1,0 +1,174 @@
+#!/usr/bin/python3
+"""Render scenes (stf render SCENE.toml) by brute force and in shell strides: the same picture,
+and how much sooner, in meshes, in colour, behind glass, with next-event estimation.
+
+For each scene file (and each --densities factor, which scales every medium's coefficients)
+  - builds the strides' pack through a cache (a 1-spp strided render; its precompute seconds),
+  - renders brute force and strides at --size pixels and --spp samples (seeds 1 and 2) for each
+    --free-radius source (grid: the distance grid, query: exact Embree queries),
+and reports per run: seconds, collisions, strides, distance queries and shadow rays per path,
+and brute force's collisions per second; per pair: the equal-error speed-up
+  (seconds_brute * variance_brute) / (seconds_stf * variance_stf)
+(variance: the images' summed variance of the mean, per channel, then averaged over the
+channels; for unbiased estimators variance * time is a constant of the method), the 4 x 4 block
+z of their difference (max over channels, target <= 4.5), the per-channel mean ratio (target
+within 1%) and the frames of this size and spp the pack pays off in.
+
+Writes OUT/scene_bench.json and, with --pictures, OUT/NAME_pair.png (brute | strided | z-map).
+Usage:
+  bench/scene_bench.py SCENE.toml [MORE.toml] [--out DIR] [--size 64] [--spp 60]
+                       [--densities 1] [--free-radius grid,query] [--pictures]
+Needs build/stf and Debian's python3-matplotlib, python3-h5py and python3-numpy.
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tomllib
+
+import h5py
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+from stf_runs import Stf  # noqa: E402
+
+
+def toml_value(v):
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    return repr(float(v)) if isinstance(v, float) else str(v)
+
+
+def scaled_scene(path, factor, out):
+    """The scene with every medium's coefficients times `factor` and mesh paths made absolute."""
+    with open(path, "rb") as f:
+        scene = tomllib.load(f)
+    folder = os.path.dirname(os.path.abspath(path))
+    lines = []
+    for key in ("camera", "light", "ground"):
+        if key in scene:
+            lines.append(f"[{key}]")
+            lines += [f"{k} = {toml_value(v)}" for k, v in scene[key].items()]
+    for m in scene["media"]:
+        m = dict(m)
+        if "preset" in m:
+            m["density"] = m.get("density", 1.0) * factor
+        else:
+            for k in ("sigma_s", "sigma_a"):
+                m[k] = [x * factor for x in m[k]] if isinstance(m[k], list) else m[k] * factor
+        lines.append("[[media]]")
+        lines += [f"{k} = {toml_value(v)}" for k, v in m.items()]
+    for o in scene["objects"]:
+        o = dict(o)
+        if "mesh" in o:
+            o["mesh"] = os.path.join(folder, o["mesh"])
+        lines.append("[[objects]]")
+        lines += [f"{k} = {toml_value(v)}" for k, v in o.items()]
+    with open(out, "w") as f:
+        f.write("\n".join(lines) + "\n")
+    return out
+
+
+def render(stf, scene, method, out, a, seed, free_radius, extra=()):
+    stats = out + ".json"
+    stf.run("render", scene, "--method", method, "--width", a.size, "--height", a.size, "--spp", a.spp, "--seed", seed,
+            "--free-radius", free_radius, "--quiet", "-o", out, "--json", stats, "--cache", a.cache, *extra)
+    with h5py.File(out, "r") as f, open(stats) as s:
+        return f["image/mean"][()], f["image/variance_of_mean"][()], json.load(s)
+
+
+def block_z(mb, vb, ms, vs, block=4):
+    h, w, _ = mb.shape
+    h, w = h - h % block, w - w % block
+    shape = (h // block, block, w // block, block, 3)
+    diff = (ms[:h, :w] - mb[:h, :w]).reshape(shape).sum(axis=(1, 3))
+    var = (vb[:h, :w] + vs[:h, :w]).reshape(shape).sum(axis=(1, 3))
+    z = np.where(var > 0, diff / np.sqrt(np.where(var > 0, var, 1)), 0)
+    return z
+
+
+def per_path(stats, key):
+    return stats[key] / stats["paths"]
+
+
+def compare(a, stf, scene, name, free_radius, pack_seconds):
+    mb, vb, sb = render(stf, scene, "brute", os.path.join(a.out, f"{name}_{free_radius}_brute.h5"), a, 1, free_radius)
+    ms, vs, ss = render(stf, scene, "stf", os.path.join(a.out, f"{name}_{free_radius}_stf.h5"), a, 2, free_radius)
+    speedup = np.mean([(sb["seconds"] * vb[..., c].sum()) / (ss["seconds"] * vs[..., c].sum()) for c in range(3)])
+    z = block_z(mb, vb, ms, vs)
+    saved = sb["seconds"] - ss["seconds"]
+    row = {"scene": name, "free_radius": free_radius, "equal_error_speedup": float(speedup),
+           "max_block_z": float(np.abs(z).max()),
+           "mean_ratio": [float(ms[..., c].mean() / mb[..., c].mean()) for c in range(3)],
+           "pack_seconds": pack_seconds, "frames_to_pay_off": pack_seconds / saved if saved > 0 else None,
+           "brute_collisions_per_second": sb["collisions"] / sb["seconds"]}
+    for tag, s in (("brute", sb), ("stf", ss)):
+        row[tag] = {"seconds": s["seconds"], "collisions_per_path": per_path(s, "collisions"),
+                    "strides_per_path": per_path(s, "strides"), "distance_queries_per_path": per_path(s, "distance_queries"),
+                    "shadow_rays_per_path": per_path(s, "shadow_rays"), "grid_bytes": s["grid_bytes"]}
+    if a.pictures:
+        picture(mb, ms, z, os.path.join(a.out, f"{name}_pair.png"), a.exposure)
+    return row
+
+
+def picture(mb, ms, z, path, exposure):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    def tone(x):
+        x = np.maximum(x * 2.0 ** exposure, 0)
+        y = np.clip(x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14), 0, 1)
+        return np.where(y <= 0.0031308, 12.92 * y, 1.055 * y ** (1 / 2.4) - 0.055)
+
+    fig, ax = plt.subplots(1, 3, figsize=(15, 5.2))
+    for i, (img, title) in enumerate(((mb, "brute force"), (ms, "shell strides"))):
+        ax[i].imshow(tone(img))
+        ax[i].set_title(title)
+    im = ax[2].imshow(np.abs(z).max(axis=2), cmap="magma", vmin=0, vmax=4.5)
+    ax[2].set_title("|z| of 4x4 blocks (max over channels)")
+    fig.colorbar(im, ax=ax[2], fraction=0.046)
+    for x in ax:
+        x.axis("off")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("scenes", nargs="+")
+    p.add_argument("--out", default="scene_bench")
+    p.add_argument("--size", type=int, default=64)
+    p.add_argument("--spp", type=int, default=60)
+    p.add_argument("--densities", default="1")
+    p.add_argument("--free-radius", default="grid,query")
+    p.add_argument("--pictures", action="store_true")
+    p.add_argument("--exposure", type=float, default=-0.5)
+    a = p.parse_args()
+    os.makedirs(a.out, exist_ok=True)
+    a.cache = os.path.join(a.out, "cache")
+    stf, rows = Stf(), []
+    for path in a.scenes:
+        for factor in (float(x) for x in a.densities.split(",")):
+            name = os.path.splitext(os.path.basename(path))[0] + (f"_x{factor:g}" if factor != 1 else "")
+            scene = scaled_scene(path, factor, os.path.join(a.out, name + ".toml"))
+            warm = os.path.join(a.out, name + "_warm.h5")
+            stf.run("render", scene, "--method", "stf", "--spp", 3, "--width", 4, "--height", 4, "--quiet", "-o", warm,
+                    "--json", warm + ".json", "--cache", a.cache)
+            with open(warm + ".json") as f:
+                pack_seconds = json.load(f)["precompute_seconds"]
+            for free_radius in a.free_radius.split(","):
+                rows.append(compare(a, stf, scene, name, free_radius, pack_seconds))
+                print(json.dumps(rows[-1]), flush=True)
+    with open(os.path.join(a.out, "scene_bench.json"), "w") as f:
+        json.dump({"size": a.size, "spp": a.spp, "rows": rows}, f, indent=2)
+
+
+if __name__ == "__main__":
+    main()
