@@ -5,7 +5,8 @@ and how much sooner, in meshes, in colour, behind glass, with next-event estimat
 For each scene file (and each --densities factor, which scales every medium's coefficients)
   - builds the strides' pack through a cache (a 1-spp strided render; its precompute seconds),
   - renders brute force and strides at --size pixels and --spp samples (seeds 1 and 2) for each
-    --free-radius source (grid: the distance grid, query: exact Embree queries),
+    --free-radius source (grid: the distance grid, query: exact Embree queries), --repeats
+    times in turns, the seconds the median of the turns,
 and reports per run: seconds, collisions, strides, distance queries and shadow rays per path,
 and brute force's collisions per second; per pair: the equal-error speed-up
   (seconds_brute * variance_brute) / (seconds_stf * variance_stf)
@@ -17,7 +18,7 @@ within 1%) and the frames of this size and spp the pack pays off in.
 Writes OUT/scene_bench.json and, with --pictures, OUT/NAME_pair.png (brute | strided | z-map).
 Usage:
   bench/scene_bench.py SCENE.toml [MORE.toml] [--out DIR] [--size 64] [--spp 60]
-                       [--densities 1] [--free-radius grid,query] [--pictures]
+                       [--densities 1] [--free-radius grid,query] [--repeats 3] [--pictures]
 Needs build/stf and Debian's python3-matplotlib, python3-h5py and python3-numpy.
 """
 import argparse
@@ -97,17 +98,39 @@ def per_path(stats, key):
     return stats[key] / stats["paths"]
 
 
+def timed_pair(a, stf, scene, name, free_radius):
+    """Both methods --repeats times in turns (the same seeds, so the same images); each run's
+    seconds the median of its turns, as this machine's load comes and goes."""
+    turns = []
+    for _ in range(a.repeats):
+        turns.append((render(stf, scene, "brute", os.path.join(a.out, f"{name}_{free_radius}_brute.h5"), a, 1, free_radius),
+                      render(stf, scene, "stf", os.path.join(a.out, f"{name}_{free_radius}_stf.h5"), a, 2, free_radius)))
+    (mb, vb, sb), (ms, vs, ss) = turns[-1]
+    sb["seconds"] = float(np.median([t[0][2]["seconds"] for t in turns]))
+    ss["seconds"] = float(np.median([t[1][2]["seconds"] for t in turns]))
+    return mb, vb, sb, ms, vs, ss
+
+
 def compare(a, stf, scene, name, free_radius, pack_seconds):
-    mb, vb, sb = render(stf, scene, "brute", os.path.join(a.out, f"{name}_{free_radius}_brute.h5"), a, 1, free_radius)
-    ms, vs, ss = render(stf, scene, "stf", os.path.join(a.out, f"{name}_{free_radius}_stf.h5"), a, 2, free_radius)
+    mb, vb, sb, ms, vs, ss = timed_pair(a, stf, scene, name, free_radius)
     speedup = np.mean([(sb["seconds"] * vb[..., c].sum()) / (ss["seconds"] * vs[..., c].sum()) for c in range(3)])
     z = block_z(mb, vb, ms, vs)
     saved = sb["seconds"] - ss["seconds"]
     row = {"scene": name, "free_radius": free_radius, "equal_error_speedup": float(speedup),
            "max_block_z": float(np.abs(z).max()),
            "mean_ratio": [float(ms[..., c].mean() / mb[..., c].mean()) for c in range(3)],
+           "mean_z": [float((ms[..., c].sum() - mb[..., c].sum()) / np.sqrt(vb[..., c].sum() + vs[..., c].sum()))
+                      for c in range(3)],
            "pack_seconds": pack_seconds, "frames_to_pay_off": pack_seconds / saved if saved > 0 else None,
            "brute_collisions_per_second": sb["collisions"] / sb["seconds"]}
+    # The bound at the measured stride cost (docs/render.md): brute force's seconds per collision
+    # price everything a path does; what the strided run spent beyond its collisions, per stride,
+    # is the stride's cost c in collisions, and B / (C + c N) what strides of that cost can give.
+    per_collision = sb["seconds"] / sb["collisions"]
+    if ss["strides"] > 0:
+        cost = (ss["seconds"] - ss["collisions"] * per_collision) / ss["strides"] / per_collision
+        bound = sb["collisions"] / (ss["collisions"] + cost * ss["strides"])
+        row.update({"stride_cost_collisions": cost, "bound_at_measured_cost": bound, "fraction_of_bound": speedup / bound})
     for tag, s in (("brute", sb), ("stf", ss)):
         row[tag] = {"seconds": s["seconds"], "collisions_per_path": per_path(s, "collisions"),
                     "strides_per_path": per_path(s, "strides"), "distance_queries_per_path": per_path(s, "distance_queries"),
@@ -127,7 +150,7 @@ def picture(mb, ms, z, path, exposure):
         y = np.clip(x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14), 0, 1)
         return np.where(y <= 0.0031308, 12.92 * y, 1.055 * y ** (1 / 2.4) - 0.055)
 
-    fig, ax = plt.subplots(1, 3, figsize=(15, 5.2))
+    fig, ax = plt.subplots(1, 3, figsize=(18, 6.4))  # panels of 512 pixels or more
     for i, (img, title) in enumerate(((mb, "brute force"), (ms, "shell strides"))):
         ax[i].imshow(tone(img))
         ax[i].set_title(title)
@@ -148,6 +171,7 @@ def main():
     p.add_argument("--spp", type=int, default=60)
     p.add_argument("--densities", default="1")
     p.add_argument("--free-radius", default="grid,query")
+    p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--pictures", action="store_true")
     p.add_argument("--exposure", type=float, default=-0.5)
     a = p.parse_args()

@@ -38,15 +38,16 @@ build/stf --config data/default_medium.toml precompute --grid csc:45 -o out/defa
 build/stf plot out/default_csc.h5 out/default_healpix.h5 --alpha 30 -o out/default_alpha30.png
 build/stf fit out/default_healpix.h5 --model vmf:4 --report out/default_vmf4.json -o out/default_vmf4.h5
 build/stf plot out/default_healpix.h5 --model out/default_vmf4.h5 --alpha 30 -o out/default_vmf4_alpha30.png
-# One pair: the same sphere (tau 20) by brute force and in strides at 256 x 256 (the strided
-# render builds its pack first, into the cache), side by side with the z-map of their difference.
-# 1024 samples a pixel: the sun is small and bright, and with fewer its speckles hide the glow.
-medium=(--sigma-s 19.98 --sigma-a 0.02 --g 0.8 --spp 1024 --width 256 --height 256)
-build/stf render "${medium[@]}" --seed 1 --method brute -o out/render_brute.h5 --png out/render_brute.png
-build/stf render "${medium[@]}" --seed 2 --method stf --cache out/render.cache -o out/render_stf.h5 --png out/render_stf.png
+# One pair: Spot in whole milk behind glass (data/scenes/milk_spot.toml) by brute force and in
+# strides, at 256 x 256 in colour (the strided render builds its pack first, into the cache),
+# side by side with the z-map of their difference.
+build/stf render data/scenes/milk_spot.toml --spp 24 --seed 1 --method brute -o out/render_brute.h5 \
+  --png out/render_brute.png --exr out/render_brute.exr --exposure -0.5
+build/stf render data/scenes/milk_spot.toml --spp 24 --seed 2 --method stf --cache out/render.cache \
+  -o out/render_stf.h5 --png out/render_stf.png --exposure -0.5
 /usr/bin/python3 tools/render_pair.py out/render_brute.h5 out/render_stf.h5 -o out/render_pair.png
 echo "quickstart: in out/: default.stfpack and report/ (report.md, PNGs, JSON)," \
-     "render_pair.png (the same sphere by brute force and in strides, and the z-map of their difference)," \
+     "render_pair.png (Spot in milk behind glass by brute force and in strides, and the z-map of their difference)," \
      "default_alpha30.png (CSC above, HEALPix below)," \
      "default_vmf4_alpha30.png (table and fitted vmf:4 side by side);" \
      "Python: PYTHONPATH=build/python /usr/bin/python3 -c 'import stf' (docs/python.md)" >&2
