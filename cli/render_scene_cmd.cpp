@@ -73,6 +73,13 @@ std::string scene_stats(const render::Image& image, const PackBuild& build, cons
   return j.dump(2) + "\n";
 }
 
+bool any_spheres(const render::ScenePaths& paths, const scene::RenderScene& sc) {
+  for (std::size_t i = 0; i < sc.objects.size(); ++i)
+    for (int c = 0; c < 3; ++c)
+      if (paths.spheres(int(i), c)) return true;
+  return false;
+}
+
 }  // namespace
 
 void run_scene_render(const RenderOptions& o, const CLI::App& cmd) {
@@ -100,6 +107,8 @@ void run_scene_render(const RenderOptions& o, const CLI::App& cmd) {
     else if (!needed.media.empty()) pack = build_pack(needed, o, s.run.threads, build);
   }
   const render::ScenePaths paths(sc, *geometry, o.method == "stf" ? &pack : nullptr);
+  if (!o.pack.empty() && !any_spheres(paths, sc))  // most likely the pack of other media
+    fail("--pack: " + o.pack + " has no sphere of the albedo and g of any object's medium in any channel");
   ProgressBar bar("render", o.quiet);
   s.run.cancel = &interrupted, s.run.progress = bar.progress();
   const render::Image image = render::render_scene(sc, paths, s);

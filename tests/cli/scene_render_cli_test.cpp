@@ -85,6 +85,8 @@ TEST_F(SceneRenderCli, WritesRgbLayoutAndImages) {
 }
 
 TEST_F(SceneRenderCli, BadScenesAndFlagsAreOneLineAndNoFile) {
+  std::ofstream(out("other.toml")) << "[[media]]\nname = \"m\"\nsigma_s = 1\nsigma_a = 0.1\ng = 0.3\n"
+                                      "[[objects]]\nshape = \"sphere\"\nmedium = \"m\"\n";
   std::ofstream(out("bad.toml")) << "[[media]]\nname = \"m\"\nsigma_s = 1\nsigma_a = 0.1\ng = 0.5\n"
                                     "[[objects]]\nshape = \"cube\"\nmedium = \"m\"\n";
   const std::vector<std::pair<std::string, std::string>> cases = {
@@ -92,6 +94,7 @@ TEST_F(SceneRenderCli, BadScenesAndFlagsAreOneLineAndNoFile) {
       {"render " + scene() + " --spp 1 --method brute --sigma-s 3", "--sigma-s"},
       {"render " + scene() + " --spp 1 --method brute --free-radius exact", "--free-radius"},
       {"render --spp 1 --method brute", "scene file"},
+      {"render " + out("other.toml") + " --spp 1 --method stf --pack " + std::string(STF_RENDER_PACK), "--pack"},
   };
   for (const auto& [args, names] : cases) {
     Result r = stf(args + " -o " + out("i.h5") + " --png " + out("i.png"));
