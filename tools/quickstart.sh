@@ -39,12 +39,13 @@ build/stf plot out/default_csc.h5 out/default_healpix.h5 --alpha 30 -o out/defau
 build/stf fit out/default_healpix.h5 --model vmf:4 --report out/default_vmf4.json -o out/default_vmf4.h5
 build/stf plot out/default_healpix.h5 --model out/default_vmf4.h5 --alpha 30 -o out/default_vmf4_alpha30.png
 # One pair: Spot in whole milk behind glass (data/scenes/milk_spot.toml) by brute force and in
-# strides, at 256 x 256 in colour (the strided render builds its pack first, into the cache),
-# side by side with the z-map of their difference.
+# strides, at 256 x 256 in colour (the strided render builds its pack first, into the cache:
+# 15 spheres, 5 per channel, certified within TV 0.05 to keep this short), side by side with the
+# z-map of their difference.
 build/stf render data/scenes/milk_spot.toml --spp 24 --seed 1 --method brute -o out/render_brute.h5 \
   --png out/render_brute.png --exr out/render_brute.exr --exposure -0.5
-build/stf render data/scenes/milk_spot.toml --spp 24 --seed 2 --method stf --cache out/render.cache \
-  -o out/render_stf.h5 --png out/render_stf.png --exposure -0.5
+build/stf render data/scenes/milk_spot.toml --spp 24 --seed 2 --method stf --tolerance 0.05 \
+  --cache out/render.cache -o out/render_stf.h5 --png out/render_stf.png --exposure -0.5
 /usr/bin/python3 tools/render_pair.py out/render_brute.h5 out/render_stf.h5 -o out/render_pair.png
 echo "quickstart: in out/: default.stfpack and report/ (report.md, PNGs, JSON)," \
      "render_pair.png (Spot in milk behind glass by brute force and in strides, and the z-map of their difference)," \
