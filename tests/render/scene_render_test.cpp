@@ -139,6 +139,22 @@ g = 0.7
   }
 }
 
+// A pack with no sphere of the scene's media leaves the strided paths brute force's, draw for
+// draw: the same image to the bit.
+TEST_F(SceneRender, StridesWithoutSpheresAreBruteForceBitForBit) {
+  const scene::RenderScene sc = scene::read_render_scene(write("scene.toml", kLitScene));
+  const render::SceneGeometry geometry(sc, render::FreeRadius::kGrid, 64);
+  const std::vector<PackEntry> none;
+  const render::ScenePaths brute(sc, geometry), strided(sc, geometry, &none);
+  render::ImageSettings s;
+  s.width = s.height = 12, s.spp = 30, s.run.threads = 3;
+  const render::Image a = render::render_scene(sc, brute, s), b = render::render_scene(sc, strided, s);
+  EXPECT_GT(a.collisions, 1000);
+  EXPECT_EQ(a.mean, b.mean);
+  EXPECT_EQ(a.variance_of_mean, b.variance_of_mean);
+  EXPECT_EQ(a.collisions, b.collisions);
+}
+
 // Each bad scene: the message names the file and the key, and holds the word that says why.
 TEST_F(SceneRender, BadScenesAreRefusedNamingFileAndKey) {
   std::ofstream(dir_ / "open.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\n";
