@@ -11,14 +11,18 @@ and reports per run: seconds, collisions, strides, distance queries and shadow r
 and brute force's collisions per second; per pair: the equal-error speed-up
   (seconds_brute * variance_brute) / (seconds_stf * variance_stf)
 (variance: the images' summed variance of the mean, per channel, then averaged over the
-channels; for unbiased estimators variance * time is a constant of the method), the 4 x 4 block
-z of their difference (max over channels, target <= 4.5), the per-channel mean ratio (target
-within 1%) and the frames of this size and spp the pack pays off in.
+channels; for unbiased estimators variance * time is a constant of the method), the stride's
+cost c in collisions measured in the strided run and the bound B / (C + c N) at it, the 4 x 4
+block z of their difference (max over channels, target <= 4.5), the per-channel mean ratio
+(target within 1%) and the frames of this size and spp the pack pays off in. With --ideal, a
+third run with ideal strides (stf render --ideal-strides: the true transport through each
+sphere) gives the shell collisions and strides of a perfect model, and the bound
+B / (C_ideal + c N_ideal) at the same c.
 
 Writes OUT/scene_bench.json and, with --pictures, OUT/NAME_pair.png (brute | strided | z-map).
 Usage:
   bench/scene_bench.py SCENE.toml [MORE.toml] [--out DIR] [--size 64] [--spp 60]
-                       [--densities 1] [--free-radius grid,query] [--repeats 3] [--pictures]
+                       [--densities 1] [--free-radius grid,query] [--repeats 3] [--ideal] [--pictures]
 Needs build/stf and Debian's python3-matplotlib, python3-h5py and python3-numpy.
 """
 import argparse
@@ -131,6 +135,14 @@ def compare(a, stf, scene, name, free_radius, pack_seconds):
         cost = (ss["seconds"] - ss["collisions"] * per_collision) / ss["strides"] / per_collision
         bound = sb["collisions"] / (ss["collisions"] + cost * ss["strides"])
         row.update({"stride_cost_collisions": cost, "bound_at_measured_cost": bound, "fraction_of_bound": speedup / bound})
+    if a.ideal and ss["strides"] > 0:
+        # Ideal strides (the true transport through each sphere, stf render --ideal-strides): the
+        # shell collisions and strides of a perfect model, and the bound at the cost c measured.
+        _, _, si = render(stf, scene, "stf", os.path.join(a.out, f"{name}_{free_radius}_ideal.h5"), a, 3, free_radius,
+                          ("--ideal-strides",))
+        ideal = sb["collisions"] / (si["collisions"] + row["stride_cost_collisions"] * si["strides"])
+        row.update({"ideal_collisions_per_path": per_path(si, "collisions"), "ideal_strides_per_path": per_path(si, "strides"),
+                    "ideal_bound_at_measured_cost": ideal, "fraction_of_ideal_bound": speedup / ideal})
     for tag, s in (("brute", sb), ("stf", ss)):
         row[tag] = {"seconds": s["seconds"], "collisions_per_path": per_path(s, "collisions"),
                     "strides_per_path": per_path(s, "strides"), "distance_queries_per_path": per_path(s, "distance_queries"),
@@ -172,6 +184,7 @@ def main():
     p.add_argument("--densities", default="1")
     p.add_argument("--free-radius", default="grid,query")
     p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--ideal", action="store_true")
     p.add_argument("--pictures", action="store_true")
     p.add_argument("--exposure", type=float, default=-0.5)
     a = p.parse_args()

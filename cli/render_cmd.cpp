@@ -181,6 +181,7 @@ void run_sphere_render(const RenderOptions& o, const CLI::App& cmd) {
   for (const char* flag : {"--sigma-s", "--sigma-a", "--g"})
     if (!cmd.count(flag)) fail(std::string("give a scene file, or ") + flag + " (with --sigma-s, --sigma-a and --g) for the sphere");
   if (auto error = validate(o.medium, PrecomputeSettings{})) fail(*error);
+  if (o.ideal_strides) fail("--ideal-strides applies to scene files (build/bench/stride_bound bounds the sphere)");
   const bool stf = o.method == "stf";
   render::ImageSettings s = image_settings(o, cmd, 64, 64);
   RenderOutputs outputs(o);
@@ -246,6 +247,9 @@ void add_render_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--json", o->json, "Write run statistics (seconds, collisions, strides) as JSON");
   cmd->add_flag("--quiet", o->quiet, "No progress bar and no summary line");
+  cmd->add_flag("--ideal-strides", o->ideal_strides,
+               "Scenes, --method stf: each stride the true transport through its sphere, its collisions counted apart "
+               "(ideal_collisions): the bound no model can beat, for benches");
   cmd->add_option("--free-radius", o->free_radius,
                   "Scenes: a mesh's free radius from its distance grid (grid) or an exact Embree query (query)")
       ->check(CLI::IsMember({"grid", "query"}))

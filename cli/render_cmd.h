@@ -24,7 +24,7 @@ struct RenderOptions {
   std::string width = "64", height = "64", spp, seed = "1", threads = "0";
   std::string method, pack, cache, output, exr, png, json, free_radius = "grid";
   double tolerance = 0.02, exposure = 0;
-  bool quiet = false;
+  bool quiet = false, ideal_strides = false;
 };
 
 // What building the render's pack took: its seconds, and how many spheres were walked and fitted

@@ -67,6 +67,7 @@ std::string scene_stats(const render::Image& image, const PackBuild& build, cons
                               {"strides", image.strides},
                               {"distance_queries", image.distance_queries},
                               {"shadow_rays", image.shadow_rays},
+                              {"ideal_collisions", image.ideal_collisions},
                               {"free_radius", geometry.method() == render::FreeRadius::kGrid ? "grid" : "query"},
                               {"grid_bytes", geometry.grid_bytes()},
                               {"mean_radiance", {image.mean_radiance(0), image.mean_radiance(1), image.mean_radiance(2)}}};
@@ -106,7 +107,8 @@ void run_scene_render(const RenderOptions& o, const CLI::App& cmd) {
     if (!o.pack.empty()) pack = read_pack_option(o.pack);
     else if (!needed.media.empty()) pack = build_pack(needed, o, s.run.threads, build);
   }
-  const render::ScenePaths paths(sc, *geometry, o.method == "stf" ? &pack : nullptr);
+  if (o.ideal_strides && o.method != "stf") fail("--ideal-strides applies to --method stf only");
+  const render::ScenePaths paths(sc, *geometry, o.method == "stf" ? &pack : nullptr, {true, o.ideal_strides});
   if (!o.pack.empty() && !any_spheres(paths, sc))  // most likely the pack of other media
     fail("--pack: " + o.pack + " has no sphere of the albedo and g of any object's medium in any channel");
   ProgressBar bar("render", o.quiet);

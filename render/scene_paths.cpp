@@ -45,8 +45,9 @@ double fresnel_dielectric(double cos_i, double n_i, double n_t) {
 }
 
 ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geometry, const std::vector<PackEntry>* pack,
-                       bool next_event)
-    : scene_(scene), geometry_(geometry), sun_(scene.light.sun_direction), next_event_(next_event) {
+                       PathOptions options)
+    : scene_(scene), geometry_(geometry), sun_(scene.light.sun_direction), next_event_(options.next_event),
+      ideal_strides_(options.ideal_strides) {
   cos_sun_ = std::cos(scene.light.sun_angle * kPi / 180);
   sun_pdf_ = 1 / (2 * kPi * (1 - cos_sun_));
   for (const scene::ObjectSpec& o : scene.objects) {
@@ -135,12 +136,8 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
       k = spheres->find(m.sigma_t, s.bound, r);
     }
     if (k >= 0) {
-      const StrideForm& form = spheres->stride_form(k);
-      const Stride e = form.jump(s.x, s.w, r, [&rng] { return rng.uniform(); });
-      s.x = e.point, s.w = e.direction, s.bound = -1;
-      s.throughput *= form.escape_probability();
-      if (e.component != kUncollided) s.after_nee = false;  // no shadow ray from a stride's exit
-      ++counters.strides;
+      if (ideal_strides_) ideal_stride(s, m, r, rng, counters);
+      else stride(s, *spheres, k, r, rng, counters);
       return true;
     }
   }
@@ -165,6 +162,35 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
   s.scatter_pdf = phase_density(m, cs.cos_theta), s.after_nee = next_event_;
   s.w = around(s.w, cs.cos_theta, cs.sin_theta, rng.uniform());
   return true;
+}
+
+void ScenePaths::stride(State& s, const SphereLookup& spheres, int k, double r, PixelRng& rng, PathCounters& counters) const {
+  const StrideForm& form = spheres.stride_form(k);
+  const Stride e = form.jump(s.x, s.w, r, [&rng] { return rng.uniform(); });
+  s.x = e.point, s.w = e.direction, s.bound = -1;
+  s.throughput *= form.escape_probability();
+  if (e.component != kUncollided) s.after_nee = false;  // no shadow ray from a stride's exit
+  ++counters.strides;
+}
+
+void ScenePaths::ideal_stride(State& s, const ChannelMedium& m, double r, PixelRng& rng, PathCounters& counters) const {
+  const Vec3 centre = s.x;
+  for (;;) {
+    const double t = -std::log(rng.uniform_open0()) * m.inv_sigma_t;
+    const Vec3 o = s.x - centre;
+    const double b = dot(o, s.w), out = -b + std::sqrt(std::max(0.0, b * b - (dot(o, o) - r * r)));
+    if (t >= out) {  // leaves the sphere: its exit, on the sphere
+      s.x += out * s.w;
+      break;
+    }
+    s.x += t * s.w;
+    ++counters.ideal_collisions;
+    s.throughput *= m.albedo, s.after_nee = false;
+    const CosSin<double> cs = sample_hg(m.hg, rng.uniform());
+    s.w = around(s.w, cs.cos_theta, cs.sin_theta, rng.uniform());
+  }
+  s.bound = -1;
+  ++counters.strides;
 }
 
 void ScenePaths::cross(State& s, const SurfaceHit& h, PixelRng& rng) const {

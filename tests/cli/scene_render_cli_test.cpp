@@ -71,6 +71,23 @@ TEST_F(SceneRenderCli, StridedMeshInColourAgreesWithBruteForce) {
   }
 }
 
+// Ideal strides (the true transport through each sphere) are exact: their image is brute force's
+// within noise, and their collisions inside spheres are counted apart.
+TEST_F(SceneRenderCli, IdealStridesDrawTheBruteForceImage) {
+  const std::string common = "render " + scene() + " --spp 300 --quiet ";
+  ASSERT_EQ(stf(common + "--seed 3 --method brute -o " + out("b.h5")).status, 0);
+  Result s = stf(common + "--seed 4 --method stf --ideal-strides --pack " + std::string(STF_RENDER_PACK) + " -o " +
+                 out("i.h5") + " --json " + out("i.json"));
+  ASSERT_EQ(s.status, 0) << s.err;
+  std::ifstream json(out("i.json"));
+  const std::string stats((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(stats.find("\"ideal_collisions\": 0,"), std::string::npos) << stats;
+  const Rendered rb = read_rgb(out("b.h5"), 24, 24), ri = read_rgb(out("i.h5"), 24, 24);
+  const ImageComparison r = compare_images(rb.mean, rb.variance_of_mean, ri.mean, ri.variance_of_mean, 24, 24, 3, 4);
+  EXPECT_LT(r.max_block_z, 4.5);
+  for (int c = 0; c < 3; ++c) EXPECT_LT(std::abs(r.mean_z[std::size_t(c)]), 4.5) << c;
+}
+
 TEST_F(SceneRenderCli, WritesRgbLayoutAndImages) {
   Result r = stf("render " + scene() + " --spp 3 --width 10 --height 6 --method brute --quiet -o " + out("i.h5") +
                  " --exr " + out("i.exr") + " --png " + out("i.png"));
@@ -94,6 +111,7 @@ TEST_F(SceneRenderCli, BadScenesAndFlagsAreOneLineAndNoFile) {
       {"render " + scene() + " --spp 1 --method brute --sigma-s 3", "--sigma-s"},
       {"render " + scene() + " --spp 1 --method brute --free-radius exact", "--free-radius"},
       {"render --spp 1 --method brute", "scene file"},
+      {"render " + scene() + " --spp 1 --method brute --ideal-strides", "--ideal-strides"},
       {"render " + out("other.toml") + " --spp 1 --method stf --pack " + std::string(STF_RENDER_PACK), "--pack"},
   };
   for (const auto& [args, names] : cases) {

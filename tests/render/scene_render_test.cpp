@@ -41,7 +41,7 @@ class SceneRender : public ::testing::Test {
                      int size = 24) {
     const scene::RenderScene sc = scene::read_render_scene(write("scene.toml", scene_text));
     const render::SceneGeometry geometry(sc, render::FreeRadius::kGrid, 64);
-    const render::ScenePaths paths(sc, geometry, nullptr, next_event);
+    const render::ScenePaths paths(sc, geometry, nullptr, render::PathOptions{next_event, false});
     render::ImageSettings s;
     s.width = s.height = size, s.spp = spp, s.seed = seed, s.run.threads = 2;
     return render::render_scene(sc, paths, s);

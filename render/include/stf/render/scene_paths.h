@@ -34,14 +34,23 @@ struct ChannelMedium {
   HgParams<double> hg{};
 };
 
+// How ScenePaths follows paths beyond what the scene says.
+struct PathOptions {
+  // false: no shadow rays, the sun found only by paths that leave toward it (the same image,
+  // noisier: the tests compare the two).
+  bool next_event = true;
+  // true: every stride is the true transport through its sphere, a walk whose collisions are
+  // counted apart (PathCounters::ideal_collisions): the strides no model can beat, whose shell
+  // collisions and strides per path bound what any stride cost can give (bench/scene_bench.py).
+  bool ideal_strides = false;
+};
+
 class ScenePaths {
  public:
   // Brute force without `pack`; strides through the pack's spheres of each channel's albedo and
   // g otherwise (a channel without any is tracked by collisions).
-  // `next_event` false: no shadow rays, the sun found only by paths that leave toward it (the
-  // same image, noisier: the tests compare the two).
   ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geometry, const std::vector<PackEntry>* pack = nullptr,
-             bool next_event = true);
+             PathOptions options = {});
   ~ScenePaths();
 
   // The radiance of `channel` arriving at `origin` from direction -`direction`.
@@ -60,6 +69,8 @@ class ScenePaths {
   bool ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& rng, PathCounters& counters) const;
   void cross(State& s, const SurfaceHit& h, PixelRng& rng) const;
   bool medium_step(State& s, int c, PixelRng& rng, PathCounters& counters) const;
+  void stride(State& s, const SphereLookup& spheres, int k, double r, PixelRng& rng, PathCounters& counters) const;
+  void ideal_stride(State& s, const ChannelMedium& m, double r, PixelRng& rng, PathCounters& counters) const;
   bool outside_step(State& s, int c, PixelRng& rng, PathCounters& counters) const;
 
   const scene::RenderScene& scene_;
@@ -68,7 +79,7 @@ class ScenePaths {
   std::vector<std::shared_ptr<SphereLookup>> lookups_;  // [objects * 3], null where none
   std::vector<double> ior_;                     // per object
   Vec3 sun_;
-  bool next_event_ = true;
+  bool next_event_ = true, ideal_strides_ = false;
   double cos_sun_ = 1, sun_pdf_ = 0;            // the disc's cosine and the uniform pdf over it
 };
 
