@@ -38,6 +38,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "tools"))
 from stf_runs import Stf  # noqa: E402
+import render_pair  # noqa: E402
 
 
 def toml_value(v):
@@ -88,14 +89,10 @@ def render(stf, scene, method, out, a, seed, free_radius, extra=()):
         return f["image/mean"][()], f["image/variance_of_mean"][()], json.load(s)
 
 
-def block_z(mb, vb, ms, vs, block=4):
-    h, w, _ = mb.shape
-    h, w = h - h % block, w - w % block
-    shape = (h // block, block, w // block, block, 3)
-    diff = (ms[:h, :w] - mb[:h, :w]).reshape(shape).sum(axis=(1, 3))
-    var = (vb[:h, :w] + vs[:h, :w]).reshape(shape).sum(axis=(1, 3))
-    z = np.where(var > 0, diff / np.sqrt(np.where(var > 0, var, 1)), 0)
-    return z
+def block_z(mb, vb, ms, vs):
+    """z of every 4 x 4 block per channel (tools/render_pair.py's), 0 where neither has variance."""
+    z = np.stack([render_pair.block_z(ms[..., c], vs[..., c], mb[..., c], vb[..., c]) for c in range(3)], axis=-1)
+    return np.nan_to_num(z)
 
 
 def per_path(stats, key):
@@ -157,14 +154,9 @@ def picture(mb, ms, z, path, exposure):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    def tone(x):
-        x = np.maximum(x * 2.0 ** exposure, 0)
-        y = np.clip(x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14), 0, 1)
-        return np.where(y <= 0.0031308, 12.92 * y, 1.055 * y ** (1 / 2.4) - 0.055)
-
     fig, ax = plt.subplots(1, 3, figsize=(18, 6.4))  # panels of 512 pixels or more
     for i, (img, title) in enumerate(((mb, "brute force"), (ms, "shell strides"))):
-        ax[i].imshow(tone(img))
+        ax[i].imshow(render_pair.tone(img, exposure))
         ax[i].set_title(title)
     im = ax[2].imshow(np.abs(z).max(axis=2), cmap="magma", vmin=0, vmax=4.5)
     ax[2].set_title("|z| of 4x4 blocks (max over channels)")

@@ -126,7 +126,11 @@ bool Boundary::inside(const Vec3& x, int object) const {
 }
 
 Vec3 Boundary::spawn(const Vec3& point, const Vec3& n, const Vec3& direction) const {
-  const double margin = 1e-5 * std::max(scale_, std::max({std::abs(point.x), std::abs(point.y), std::abs(point.z)}));
+  return off_surface(point, n, direction, scale_);
+}
+
+Vec3 off_surface(const Vec3& point, const Vec3& n, const Vec3& direction, double scale) {
+  const double margin = 1e-5 * std::max(scale, std::max({std::abs(point.x), std::abs(point.y), std::abs(point.z)}));
   return point + (dot(direction, n) >= 0 ? margin : -margin) * n;
 }
 

@@ -22,8 +22,8 @@ double at_float_precision(double x) {
 }
 Vec3 at_float_precision(const Vec3& v) { return {at_float_precision(v.x), at_float_precision(v.y), at_float_precision(v.z)}; }
 
-// Joins vertices at the same position (an OBJ may repeat a position per face or per texture
-// seam) and renumbers the triangles.
+}  // namespace
+
 TriangleMesh welded(const TriangleMesh& mesh) {
   TriangleMesh out;
   std::map<std::array<double, 3>, std::uint32_t> index;
@@ -37,6 +37,8 @@ TriangleMesh welded(const TriangleMesh& mesh) {
   for (const auto& t : mesh.triangles) out.triangles.push_back({renumber[t[0]], renumber[t[1]], renumber[t[2]]});
   return out;
 }
+
+namespace {
 
 std::string where(const Vec3& v) { return fmt::format("({:g}, {:g}, {:g})", v.x, v.y, v.z); }
 

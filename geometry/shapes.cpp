@@ -13,19 +13,7 @@ namespace stf::geometry {
 namespace {
 
 // Rounds to float precision and joins equal positions (as read_obj does).
-TriangleMesh finished(const TriangleMesh& mesh) {
-  TriangleMesh rounded = placed(mesh, 1.0, {0, 0, 0});
-  std::map<std::array<double, 3>, std::uint32_t> index;
-  TriangleMesh out;
-  std::vector<std::uint32_t> renumber;
-  for (const Vec3& v : rounded.vertices) {
-    auto [it, added] = index.try_emplace({v.x, v.y, v.z}, std::uint32_t(out.vertices.size()));
-    if (added) out.vertices.push_back(v);
-    renumber.push_back(it->second);
-  }
-  for (const auto& t : rounded.triangles) out.triangles.push_back({renumber[t[0]], renumber[t[1]], renumber[t[2]]});
-  return oriented_outward(out);
-}
+TriangleMesh finished(const TriangleMesh& mesh) { return oriented_outward(welded(placed(mesh, 1.0, {0, 0, 0}))); }
 
 // Two triangles of the quad (a, b, c, d), counter-clockwise.
 void add_quad(TriangleMesh& m, std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint32_t d) {

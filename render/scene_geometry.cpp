@@ -123,8 +123,7 @@ double SceneGeometry::tight_free_radius(const Vec3& x, int object) const {
 }
 
 Vec3 SceneGeometry::spawn(const Vec3& point, const Vec3& n, const Vec3& direction) const {
-  const double margin = 1e-5 * std::max(scale_, std::max({std::abs(point.x), std::abs(point.y), std::abs(point.z)}));
-  return point + (dot(direction, n) >= 0 ? margin : -margin) * n;
+  return geometry::off_surface(point, n, direction, scale_);
 }
 
 std::size_t SceneGeometry::grid_bytes() const {

@@ -94,6 +94,11 @@ double ScenePaths::escape(const State& s, int c) const {
   return l;
 }
 
+Vec3 ScenePaths::toward_sun(PixelRng& rng) const {
+  const double ct = 1 - rng.uniform() * (1 - cos_sun_);
+  return around(sun_, ct, std::sqrt(std::max(0.0, 1 - ct * ct)), rng.uniform());
+}
+
 double ScenePaths::transmittance(Vec3 x, const Vec3& l, int c) const {
   // Each crossing either leaves a medium (its chord attenuates) or enters one.
   double t = 1;
@@ -116,8 +121,7 @@ void ScenePaths::nee_at_collision(State& s, int c, double bound, PixelRng& rng, 
     if (rng.uniform() * kNeeRoulette >= most) return;
     weight = kNeeRoulette / most;
   }
-  const double ct = 1 - rng.uniform() * (1 - cos_sun_);
-  const Vec3 l = around(sun_, ct, std::sqrt(std::max(0.0, 1 - ct * ct)), rng.uniform());
+  const Vec3 l = toward_sun(rng);
   const double f = phase_density(m, dot(s.w, l));
   const double t = transmittance(s.x, l, c);
   ++counters.shadow_rays;
@@ -216,8 +220,7 @@ void ScenePaths::cross(State& s, const SurfaceHit& h, PixelRng& rng) const {
 bool ScenePaths::ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& rng, PathCounters& counters) const {
   const double albedo = scene_.ground.albedo[std::size_t(c)];
   if (albedo <= 0) return false;
-  const double ct = 1 - rng.uniform() * (1 - cos_sun_);
-  const Vec3 l = around(sun_, ct, std::sqrt(std::max(0.0, 1 - ct * ct)), rng.uniform());
+  const Vec3 l = toward_sun(rng);
   if (next_event_ && l.y > 0) {
     const double t = transmittance(geometry_.spawn(s.x, h.normal, l), l, c), p = l.y / kPi;
     ++counters.shadow_rays;

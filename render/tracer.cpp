@@ -91,8 +91,9 @@ constexpr double kLargestSphere = 128;
 }  // namespace
 
 PackLadder pack_ladder(const Medium& m) {
-  const double smallest = smallest_paying_tau(m.g, kStrideCost), sigma_t = m.sigma_t();
-  return {smallest, kSphereRatio, std::min(m.radius, smallest / sigma_t), std::min(m.radius, kLargestSphere / sigma_t)};
+  PackLadder l = stride_ladder(m, m.radius);
+  l.radius_min = std::min(m.radius, l.radius_min);
+  return l;
 }
 
 PackLadder stride_ladder(const Medium& m, double room) {

@@ -37,8 +37,9 @@ double StfModel::direction_pdf(int bin, const Vec3& w) const {
   if (kind == ModelKind::kVmf) {
     double p = 0;
     const BinSlice<const double> norm = hemispherical ? bin_slice(lobe_norm, bin, lobes) : BinSlice<const double>();
+    const BinSlice<const VmfLobe> bin_lobes = lobes_of(bin);
     for (int k = 0; k < lobes; ++k) {
-      const VmfLobe& l = lobes_of(bin)[std::size_t(k)];
+      const VmfLobe& l = bin_lobes[std::size_t(k)];
       p += l.weight * vmf_pdf(l.kappa, dot(l.mean, w)) / (hemispherical ? norm[std::size_t(k)] : 1.0);
     }
     return p * outward_factor(bin, w);

@@ -20,7 +20,6 @@ inline Vec3 operator*(const Vec3& a, double s) { return {a.x * s, a.y * s, a.z *
 inline Vec3 operator*(double s, const Vec3& a) { return {s * a.x, s * a.y, s * a.z}; }
 inline Vec3 operator/(const Vec3& a, double s) { return {a.x / s, a.y / s, a.z / s}; }
 inline Vec3& operator+=(Vec3& a, const Vec3& b) { return a = a + b; }
-inline Vec3& operator-=(Vec3& a, const Vec3& b) { return a = a - b; }
 
 inline double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 inline double length(const Vec3& v) { return std::sqrt(dot(v, v)); }

@@ -50,6 +50,11 @@ class Boundary {
   std::unique_ptr<Embree> embree_;
 };
 
+// A point just off the surface at `point` (normal n) on the side `direction` heads for, by
+// 1e-5 of the larger of the scene's size `scale` and the point's coordinates: above Embree's
+// float rounding, so that a ray from there does not find the same surface again.
+Vec3 off_surface(const Vec3& point, const Vec3& n, const Vec3& direction, double scale);
+
 // The squared distance from p to the triangle (a, b, c).
 double squared_distance_to_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
 

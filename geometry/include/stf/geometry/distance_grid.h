@@ -31,9 +31,7 @@ class DistanceGrid {
     const double fx = (x.x - origin_.x) * inv_cell_, fy = (x.y - origin_.y) * inv_cell_, fz = (x.z - origin_.z) * inv_cell_;
     if (!(fx >= 0 && fy >= 0 && fz >= 0 && fx < n_[0] && fy < n_[1] && fz < n_[2])) return 0;
     const int i = int(fx), j = int(fy), k = int(fz);
-    const Vec3 centre = origin_ + cell_ * Vec3{i + 0.5, j + 0.5, k + 0.5};
-    const double d = double(value_[index(i, j, k)]);
-    return std::max(0.0, d - length(x - centre) - slack_);
+    return std::max(0.0, double(value_[index(i, j, k)]) - length(x - centre(i, j, k)) - slack_);
   }
 
   // The largest of the bounds of the eight cells whose centres surround x: near a surface one of

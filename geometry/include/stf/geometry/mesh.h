@@ -30,6 +30,10 @@ Bounds bounds_of(const TriangleMesh& mesh);
 // holds no triangle.
 TriangleMesh read_obj(const std::string& path);
 
+// The mesh with vertices at the same position joined (an OBJ may repeat a position per face or
+// per texture seam) and the triangles renumbered.
+TriangleMesh welded(const TriangleMesh& mesh);
+
 // Writes `mesh` as OBJ (vertices and faces only), for the shipped procedural meshes.
 std::string obj_text(const TriangleMesh& mesh);
 

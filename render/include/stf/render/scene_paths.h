@@ -63,7 +63,8 @@ class ScenePaths {
  private:
   struct State;
   double escape(const State& s, int c) const;
-  double sun_sample(const State& s, int c, const Vec3& towards, double& pdf) const;
+  // A direction toward a uniform point of the sun's disc (density sun_pdf_ per sr).
+  Vec3 toward_sun(PixelRng& rng) const;
   double transmittance(Vec3 x, const Vec3& l, int c) const;
   void nee_at_collision(State& s, int c, double bound, PixelRng& rng, PathCounters& counters) const;
   bool ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& rng, PathCounters& counters) const;
