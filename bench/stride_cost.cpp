@@ -1,7 +1,7 @@
 // What a stride costs, in collisions: the `c` of the bound B / (C + c N) (docs/render.md).
 // In one run, on one thread:
-//  - per entry of a pack: ns per stride (the entry's StrideForm, and ShellSampler::jump for the
-//    ratio, each from where the last stride left) and ns per collision (one free flight and HG
+//  - per entry of a pack: ns per stride (the entry's StrideForm, and ShellSampler::jump from four
+//    uniforms, which draws through it, each from where the last stride left) and ns per collision (one free flight and HG
 //    turn in a medium of that entry's albedo and g), and their ratio; the stride form also
 //    from four paths in turn (were the processor to overlap strides of different paths, this
 //    would be faster per stride);
@@ -11,8 +11,7 @@
 //    and g, sigma_t 100, radius TAU / 100) with no medium work (camera rays only: each path's
 //    set-up), brute force and in strides; each run's time less the set-up's, brute force's
 //    divided by its collisions, the strided one's less its collisions at that rate divided by
-//    its strides; and the strided render as it was before the stride form (SamplerStrides), its
-//    seconds against the stride form's in the same run.
+//    its strides.
 // JSON on stdout.
 //   stride_cost PACK [TAU] [SPP]
 #include <stf/pack.h>
@@ -162,40 +161,6 @@ class SetUpOnly final : public stf::render::Method {
   }
 };
 
-// The strided render as it was before the stride form, the baseline in the same run: the
-// sphere found by its free radius (a square root and a division by sigma_t per step) and the
-// stride drawn by ShellSampler::jump from four uniforms.
-class SamplerStrides final : public stf::render::Method {
- public:
-  SamplerStrides(const stf::Medium& m, const std::vector<stf::PackEntry>& pack)
-      : medium_(m), walk_(m), spheres_(stf::render::entries_for(m, pack), "render") {}
-  double radiance(const Vec3& entry, const Vec3& direction, PixelRng& rng,
-                  stf::render::PathCounters& counters) const override {
-    Vec3 x = entry, w = direction;
-    double throughput = 1;
-    for (;;) {
-      double r = 0;
-      const int sphere = spheres_.find(medium_.sigma_t(), medium_.radius - stf::length(x), r);
-      if (sphere >= 0) {
-        const stf::ShellSampler& s = spheres_.sampler(sphere);
-        const double u0 = rng.uniform(), u1 = rng.uniform(), u2 = rng.uniform(), u3 = rng.uniform();
-        const stf::WorldExit exit = s.jump(x, w, r, u0, u1, u2, u3);
-        x = exit.point, w = exit.direction, throughput *= s.escape_probability();
-        ++counters.strides;
-      } else {
-        if (walk_.leaves_after_flight(x, w, throughput, rng)) return throughput * stf::render::sky_radiance(w);
-        ++counters.collisions;
-      }
-      if (!stf::render::survives_roulette(throughput, rng)) return 0;
-    }
-  }
-
- private:
-  stf::Medium medium_;
-  stf::render::CollisionWalk walk_;
-  stf::SphereLookup spheres_;
-};
-
 struct LoopRun {
   double seconds = 0, collisions = 0, strides = 0;
 };
@@ -280,7 +245,6 @@ int main(int argc, char** argv) {
   const stf::render::ShellStrides strided(m, pack);
   const LoopRun o = render_loop(m, SetUpOnly(), spp, sink);
   const LoopRun b = render_loop(m, brute, spp, sink), s = render_loop(m, strided, spp, sink);
-  const LoopRun j = render_loop(m, SamplerStrides(m, pack), spp, sink);
   const double ns_collision = 1e9 * (b.seconds - o.seconds) / b.collisions;
   const double ns_stride =
       s.strides > 0 ? (1e9 * (s.seconds - o.seconds) - ns_collision * s.collisions) / s.strides : 0;
@@ -289,9 +253,9 @@ int main(int argc, char** argv) {
       "\"brute_collisions\": %.0f, \"stf_seconds\": %.3f, \"stf_collisions\": %.0f, "
       "\"stf_strides\": %.0f, "
       "\"ns_per_collision\": %.1f, \"ns_per_stride\": %.1f, \"stride_cost_collisions\": %.2f, "
-      "\"sampler_strides_seconds\": %.3f, \"stf_over_sampler_strides\": %.3f, \"brute_over_stf\": %.3f}, "
+      "\"brute_over_stf\": %.3f}, "
       "\"sink\": %g}\n",
       tau, strided.spheres(), spp, o.seconds, b.seconds, b.collisions, s.seconds, s.collisions, s.strides,
-      ns_collision, ns_stride, ns_stride / ns_collision, j.seconds, s.seconds / j.seconds, b.seconds / s.seconds, sink);
+      ns_collision, ns_stride, ns_stride / ns_collision, b.seconds / s.seconds, sink);
   return 0;
 }

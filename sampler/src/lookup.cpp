@@ -27,7 +27,6 @@ SphereLookup::SphereLookup(const std::vector<PackEntry>& pack, const std::string
   for (std::size_t i : pack_index_) {
     taus_.push_back(tau(i));
     samplers_.emplace_back(pack[i].model);
-    strides_.emplace_back(pack[i].model, samplers_.back().tables());  // one set of draw tables per sphere
   }
 }
 

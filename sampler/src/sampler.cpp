@@ -24,6 +24,7 @@ ShellSampler::ShellSampler(StfModel model, std::shared_ptr<const DrawTables> tab
   for (int b = 0; b < bins; ++b) tilt_expm1_.push_back(std::expm1(model_.tilt(b)));
   if (model_.hemispherical && model_.lobe_norm.size() != model_.vmf.size()) model_.rebuild_lobe_norms();
   tables_ = tables ? std::move(tables) : make_draw_tables(model_);
+  form_ = StrideForm(model_, tables_);
   for (std::size_t i = 0; i < model_.vmf.size(); ++i) {
     const VmfLobe& l = model_.vmf[i];
     Lobe c;
@@ -175,11 +176,10 @@ WorldExit ShellSampler::sample_world(const Vec3& position, const Vec3& direction
 
 WorldExit ShellSampler::jump(const Vec3& position, const Vec3& direction, double radius, double u0, double u1,
                              double u2, double u3) const {
-  int bin;
-  Vec3 local;
-  ExitSample s = draw(u0, u1, u2, u3, bin, local);
-  s.pdf = 0;
-  return to_world(position, direction, radius, s);
+  const double first[4] = {u0, u1, u2, u3};
+  RetryStream more(u0, u1, u2, u3);
+  int taken = 0;
+  return jump(position, direction, radius, [&] { return taken < 4 ? first[taken++] : more.uniform(); });
 }
 
 double ShellSampler::pdf_world(const Vec3& position, const Vec3& direction, double radius, const Vec3& exit_point,

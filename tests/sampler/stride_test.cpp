@@ -80,6 +80,21 @@ struct ExitBins {
   }
 };
 
+// A model of `bins` alpha bins whose tilts cycle through `tilts`.
+StfModel with_bins(int bins, const std::vector<double>& tilts) {
+  StfModel m = test::make_vmf_model();
+  const StfModel base = m;
+  m.alpha_edges.clear(), m.alpha_probability.clear(), m.status.clear(), m.vmf.clear(), m.alpha_tilt.clear();
+  for (int b = 0; b <= bins; ++b) m.alpha_edges.push_back(kPi * b / bins);
+  for (int b = 0; b < bins; ++b) {
+    m.alpha_probability.push_back(1.0 / bins), m.status.push_back(BinStatus::kFitted);
+    m.alpha_tilt.push_back(tilts[std::size_t(b) % tilts.size()]);
+    const auto lobes = base.lobes_of(b % base.bins());
+    m.vmf.insert(m.vmf.end(), lobes.begin(), lobes.end());
+  }
+  return m;
+}
+
 StfModel with_once_scattered(StfModel m) {
   m.once_fraction = 0.15;
   return m;
@@ -93,9 +108,13 @@ TEST(Stride, DrawsTheModelsDistributionChiSquare) {
        {make_vmf_model(), make_sh_model(), hemispherical(with_uncollided(make_vmf_model())), turned(tilted(make_vmf_model())),
         blended(turned(tilted(hemispherical(make_vmf_model()))), 2), blended_by_bin(turned(tilted(make_vmf_model()))),
         turned(blended(tilted(make_sh_model()))),
-        with_once_scattered(with_uncollided(turned(tilted(hemispherical(make_vmf_model())))))}) {
+        with_once_scattered(with_uncollided(turned(tilted(hemispherical(make_vmf_model()))))),
+        turned(hemispherical(with_bins(12, {0.0, 0.3, 0.0, -0.1})))}) {
     const ShellSampler sampler(model);
     const StrideForm form(model);
+    if (model.bins() == 12) {
+      EXPECT_GE(form.polynomial_bins(), 4);  // exit angles through polynomials too
+    }
     const ExitBins bins{sampler.model()};
     const int n = 400000;
     std::vector<double> observed(std::size_t(bins.size()), 0.0), expected = bins.expected(sampler);
@@ -107,6 +126,24 @@ TEST(Stride, DrawsTheModelsDistributionChiSquare) {
                                      << model.alpha_blend << " turn " << !model.alpha_turn.empty() << " hemispherical "
                                      << model.hemispherical << " sh " << (model.kind == ModelKind::kSh);
   }
+}
+
+// ShellSampler::jump from four uniforms (the rest from a stream seeded by them) draws the same.
+TEST(Stride, SamplerJumpDrawsTheModelsDistributionChiSquare) {
+  const StfModel model = with_once_scattered(test::with_uncollided(test::turned(test::hemispherical(with_bins(12, {0.0, 0.3})))));
+  const ShellSampler sampler(model);
+  const ExitBins bins{sampler.model()};
+  const int n = 400000;
+  std::vector<double> observed(std::size_t(bins.size()), 0.0), expected = bins.expected(sampler);
+  for (double& e : expected) e *= n;
+  Uniforms u{86};
+  for (int i = 0; i < n; ++i) {
+    const double u0 = u(), u1 = u(), u2 = u(), u3 = u();
+    const WorldExit e = sampler.jump({0, 0, 0}, {0, 0, 1}, 1.0, u0, u1, u2, u3);
+    observed[std::size_t(bins.bin({e.point, e.direction, e.component}))] += 1;
+  }
+  const test::Chi2Result r = test::chi2_test(observed, expected);
+  EXPECT_GT(r.p_value, test::kChi2Alpha) << r.describe();
 }
 
 // The once-scattered part alone: its exit points and directions as ShellSampler draws them.
@@ -170,6 +207,32 @@ TEST(Stride, ExtremeUniformsStayFinite) {
       ASSERT_NEAR(length(s.point), 1, 1e-12) << start;
       ASSERT_NEAR(length(s.direction), 1, 1e-12) << start;
     }
+  }
+}
+
+// Where a bin draws its exit angle through the polynomial, it is within kAngleError of the
+// tilt's exact quantile: tilts from flat to the largest a fit keeps, bins of 4 to 30 degrees.
+// Bins of moderate tilt (those of dense media's models are below 0.7) have their polynomial.
+TEST(Stride, ExitAnglePolynomialsMeetTheirBound) {
+  const std::vector<double> tilts = {-40, -4, -0.5, 0, 0.3, 1e-9, 5, 40};
+  for (const int bins : {6, 12, 45}) {
+    const StfModel model = with_bins(bins, tilts);
+    const StrideForm form(model);
+    int moderate = 0;  // bins of |tilt| <= 0.3 three or more from the poles: each has its polynomial
+    for (int b = 3; b + 3 < bins; ++b) moderate += std::abs(model.alpha_tilt[std::size_t(b)]) <= 0.3;
+    if (bins == 45) {
+      EXPECT_GE(form.polynomial_bins(), moderate);
+    }
+    Uniforms u{85};
+    for (int b = 0; b < bins; ++b)
+      for (int k = 0; k <= 2000; ++k) {
+        const double r = k < 1000 ? k / 1000.0 : u(), tilt = model.alpha_tilt[std::size_t(b)];
+        const double c0 = std::cos(model.alpha_edges[std::size_t(b)]), c1 = std::cos(model.alpha_edges[std::size_t(b) + 1]);
+        const double exact = std::acos(c0 + tilt_quantile(tilt, r) * (c1 - c0));
+        const Vec3 p = form.exit_point(b, r);
+        ASSERT_NEAR(std::atan2(p.x, p.z), exact, StrideForm::kAngleError + 1e-14) << bins << " bins, bin " << b << " r " << r;
+        ASSERT_NEAR(length(p), 1, 1e-15);
+      }
   }
 }
 

@@ -19,8 +19,8 @@ const PackEntry* find_entry(const std::vector<PackEntry>& pack, const std::strin
                             double free_radius, double& radius);
 
 // find_entry for a renderer's inner loop, where it runs at every path vertex: the spheres of
-// one medium sorted by tau once, each with its own sampler (a copy of the model) and stride
-// form (stf/stride.h), so a lookup compares doubles only. Finds the same entries as find_entry; needs nothing of the pack once
+// one medium sorted by tau once, each with its own sampler (a copy of the model, and its stride
+// form, stf/stride.h), so a lookup compares doubles only. Finds the same entries as find_entry; needs nothing of the pack once
 // built. Const and thread-safe.
 class SphereLookup {
  public:
@@ -31,7 +31,7 @@ class SphereLookup {
   int size() const { return int(taus_.size()); }
   double tau(int i) const { return taus_[std::size_t(i)]; }  // ascending in i
   const ShellSampler& sampler(int i) const { return samplers_[std::size_t(i)]; }
-  const StrideForm& stride_form(int i) const { return strides_[std::size_t(i)]; }
+  const StrideForm& stride_form(int i) const { return samplers_[std::size_t(i)].stride_form(); }
   // Where sphere i is in the pack the lookup was built from.
   std::size_t pack_index(int i) const { return pack_index_[std::size_t(i)]; }
 
@@ -39,7 +39,6 @@ class SphereLookup {
   std::vector<double> taus_;  // ascending; the samplers' taus, packed together for find()
   std::vector<std::size_t> pack_index_;
   std::vector<ShellSampler> samplers_;
-  std::vector<StrideForm> strides_;
 };
 
 }  // namespace stf

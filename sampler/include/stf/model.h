@@ -20,6 +20,9 @@ namespace stf {
 
 enum class ModelKind { kVmf, kSh };
 
+// Which part of the exit distribution drew a sample.
+enum Component : int { kSmooth = 0, kUncollided = 1, kOnceScattered = 2 };
+
 // Bin b's `per` entries of an array laid out [bins * per] (the sampler's headers stay C++17,
 // so no std::span).
 template <typename T>

@@ -29,7 +29,6 @@
 #include "stf/math.h"
 #include "stf/model.h"
 #include "stf/draw_tables.h"
-#include "stf/sampler.h"
 #include "stf/tilt.h"
 #include "stf/vec3.h"
 
@@ -72,9 +71,17 @@ inline void sincos_angle(double angle, double& s, double& c) {
 
 class StrideForm {
  public:
+  // A bin's exit angle is drawn through a polynomial of this degree where it is within
+  // kAngleError radians of the exact quantile and its derivative within kAngleSlopeError
+  // (relative: the exit points' density, so the TV distance to the model's, is off by at most
+  // half that).
+  static constexpr int kAngleDegree = 9;
+  static constexpr double kAngleError = 1e-10, kAngleSlopeError = 1e-7;
+
   // The model must be valid (as read_pack or fit/ produce it). `tables`, when given, must be the
   // draw tables of this model (a ShellSampler's tables()); else they are built here.
   explicit StrideForm(const StfModel& model, std::shared_ptr<const DrawTables> tables = nullptr);
+  StrideForm() = default;  // draws nothing until assigned
 
   // The exit of a path at `position` heading `direction` (unit) through the sphere of
   // `radius` around it; `uniform()` returns independent uniforms in [0, 1).
@@ -91,6 +98,16 @@ class StrideForm {
   }
 
   double escape_probability() const { return escape_probability_; }
+  // The exit point (sin alpha, 0, cos alpha) that bin b's smooth part draws at remainder r of
+  // the alias draw (through the polynomial where the bin has one).
+  Vec3 exit_point(int bin, double r) const {
+    const ExitAngle a = exit_angle(bin_[std::size_t(bin)], r);
+    return {a.sin_alpha, 0, a.cos_alpha};
+  }
+  // How many alpha bins draw their exit angle through the polynomial.
+  int polynomial_bins() const {
+    return int(std::count_if(bin_.begin(), bin_.end(), [](const Bin& b) { return !b.exact; }));
+  }
 
  private:
   struct Bin {
@@ -101,6 +118,12 @@ class StrideForm {
     double middle, cos_middle, sin_middle;
     double turn;         // the bin's turn rate (StfModel::alpha_turn)
     int blend;           // blend width
+    double inv_dc;
+    // The exit angle less the middle, alpha(r) - middle, as a polynomial in x = 2 r - 1 of the
+    // alias remainder r (coefficients of x^0 .. x^kAngleDegree), where it meets
+    // kAngleError; else `exact` and the exit angle comes from the tilt's quantile.
+    bool exact = true;
+    double angle[kAngleDegree + 1] = {};
   };
   using Lobe = VmfFrame;
   // An exit point of bin b at the remainder r of the alias draw: cos and sin of alpha, the
@@ -109,6 +132,8 @@ class StrideForm {
     double cos_alpha, sin_alpha, u, from_middle;
   };
   ExitAngle exit_angle(const Bin& bin, double r) const;
+  // Fits bin's exit-angle polynomial (alpha edges a0, a1); false where it misses the errors.
+  static bool fit_angle(Bin& bin, double a0, double a1);
   // The blended bin whose density draws the direction at area fraction u of bin b.
   int blend_pick(int b, double u, double v) const;
   Vec3 sh_direction(int bin, double u, double v) const;

@@ -43,16 +43,18 @@ inline double sample_vmf_cos(double kappa, double u) {
 // A lobe made for drawing: its frame and the constants of its quantile, computed once.
 struct VmfFrame {
   Frame frame;  // z is the mean
-  double kappa = 0, expm1_2k = 0;
+  double kappa = 0, expm1_2k = 0, inv_kappa = 0;
   VmfFrame() = default;
-  explicit VmfFrame(const VmfLobe& l) : frame(Frame::around(l.mean)), kappa(l.kappa), expm1_2k(std::expm1(-2 * l.kappa)) {}
+  explicit VmfFrame(const VmfLobe& l)
+      : frame(Frame::around(l.mean)), kappa(l.kappa), expm1_2k(std::expm1(-2 * l.kappa)),
+        inv_kappa(l.kappa > 0 ? 1 / l.kappa : 0) {}
   const Vec3& mean() const { return frame.z; }
   // The direction at quantile u of cos(theta) and azimuth 2 pi v: sample_vmf_cos's stable
   // inversion with expm1(-2 kappa) cached, and log for kappa >= 1, where 1 + x loses nothing
   // that matters (an absolute 1e-16 / kappa in c) and log is several times cheaper than log1p.
   Vec3 direction(double u, double v) const {
     const double t = (1 - u) * expm1_2k;
-    double c = kappa < 1e-300 ? 2 * u - 1 : 1 + (kappa >= 1 ? std::log(1 + t) : std::log1p(t)) / kappa;
+    double c = kappa < 1e-300 ? 2 * u - 1 : 1 + (kappa >= 1 ? std::log(1 + t) : std::log1p(t)) * inv_kappa;
     c = std::clamp(c, -1.0, 1.0);
     double s = std::sqrt(std::max(0.0, 1 - c * c)), sp, cp;
     sincos_2pi(v, sp, cp);
