@@ -42,6 +42,21 @@ void check_shape(const Radiance& image) {
 
 }  // namespace
 
+ImageData read_image(const std::string& path) {
+  std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::open(path);
+  if (!in) throw std::runtime_error(path + ": " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = in->spec();
+  ImageData image{spec.width, spec.height, spec.nchannels, {}};
+  const double count = double(spec.width) * double(spec.height) * double(spec.nchannels);
+  if (spec.width < 1 || spec.height < 1 || spec.nchannels < 1 || spec.depth > 1 || count > 1e9)
+    throw std::runtime_error(path + ": not a 2D image of at most 1e9 values (" + std::to_string(spec.width) + " x " +
+                             std::to_string(spec.height) + " x " + std::to_string(spec.nchannels) + ")");
+  image.values.resize(std::size_t(count));
+  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.values.data()))
+    throw std::runtime_error(path + ": " + in->geterror());
+  return image;
+}
+
 void write_exr(const std::string& path, const Radiance& image) {
   check_shape(image);
   const std::size_t pixels = std::size_t(image.width) * std::size_t(image.height);

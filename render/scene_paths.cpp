@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
+
+#include "stf/scene/scene_error.h"
 
 namespace stf::render {
 
@@ -44,10 +47,19 @@ double fresnel_dielectric(double cos_i, double n_i, double n_t) {
   return 0.5 * (rs * rs + rp * rp);
 }
 
+std::shared_ptr<const EnvironmentMap> read_environment(const scene::RenderScene& scene) {
+  if (scene.light.environment.empty()) return nullptr;
+  try {
+    return std::make_shared<const EnvironmentMap>(EnvironmentMap::read(scene.light.environment, scene.light.environment_scale));
+  } catch (const std::exception& e) {
+    throw scene::SceneError(scene.path + ": light.environment: " + e.what());
+  }
+}
+
 ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geometry, const std::vector<PackEntry>* pack,
                        PathOptions options)
-    : scene_(scene), geometry_(geometry), sun_(scene.light.sun_direction), next_event_(options.next_event),
-      ideal_strides_(options.ideal_strides) {
+    : scene_(scene), geometry_(geometry), environment_(read_environment(scene)), sun_(scene.light.sun_direction),
+      next_event_(options.next_event), ideal_strides_(options.ideal_strides) {
   cos_sun_ = std::cos(scene.light.sun_angle * kPi / 180);
   sun_pdf_ = 1 / (2 * kPi * (1 - cos_sun_));
   for (const scene::ObjectSpec& o : scene.objects) {
@@ -89,6 +101,10 @@ double ScenePaths::radiance(const Vec3& origin, const Vec3& direction, int c, Pi
 
 double ScenePaths::escape(const State& s, int c) const {
   double l = scene_.light.sky[std::size_t(c)];
+  if (environment_) {
+    l = environment_->radiance(s.w, c);
+    if (s.after_nee && l > 0) l *= power_heuristic(s.scatter_pdf, environment_->pdf(s.w));
+  }
   if (dot(s.w, sun_) >= cos_sun_)
     l += scene_.light.sun[std::size_t(c)] * (s.after_nee ? power_heuristic(s.scatter_pdf, sun_pdf_) : 1.0);
   return l;
@@ -112,6 +128,29 @@ double ScenePaths::transmittance(Vec3 x, const Vec3& l, int c) const {
   return 0;
 }
 
+template <typename Density, typename Start>
+double ScenePaths::light_ray(const LightSample& light, int c, PathCounters& counters, const Density& density,
+                             const Start& start) const {
+  const double f = density(light.l);
+  if (!(f > 0) || !(light.radiance > 0)) return 0;
+  ++counters.shadow_rays;
+  const double t = transmittance(start(light.l), light.l, c);
+  return t > 0 ? f * t * light.radiance / light.pdf * power_heuristic(light.pdf, f) : 0.0;
+}
+
+template <typename Density, typename Start>
+double ScenePaths::direct(const Vec3& to_sun, int c, PixelRng& rng, PathCounters& counters, const Density& density,
+                          const Start& start) const {
+  double sum = light_ray({to_sun, sun_pdf_, scene_.light.sun[std::size_t(c)]}, c, counters, density, start);
+  if (environment_) {
+    LightSample map;
+    map.l = environment_->sample(rng.uniform(), rng.uniform(), map.pdf);
+    map.radiance = environment_->radiance(map.l, c);
+    if (map.pdf > 0) sum += light_ray(map, c, counters, density, start);
+  }
+  return sum;
+}
+
 void ScenePaths::nee_at_collision(State& s, int c, double bound, PixelRng& rng, PathCounters& counters) const {
   if (!next_event_ || ior_[std::size_t(s.inside)] != 1) return;  // behind a dielectric no shadow ray passes
   const ChannelMedium& m = medium(s.inside, c);
@@ -121,12 +160,10 @@ void ScenePaths::nee_at_collision(State& s, int c, double bound, PixelRng& rng, 
     if (rng.uniform() * kNeeRoulette >= most) return;
     weight = kNeeRoulette / most;
   }
-  const Vec3 l = toward_sun(rng);
-  const double f = phase_density(m, dot(s.w, l));
-  const double t = transmittance(s.x, l, c);
-  ++counters.shadow_rays;
-  if (t > 0)
-    s.radiance += s.throughput * weight * f * t * scene_.light.sun[std::size_t(c)] / sun_pdf_ * power_heuristic(sun_pdf_, f);
+  const Vec3 to_sun = toward_sun(rng), x = s.x, w = s.w;
+  s.radiance += s.throughput * weight *
+                direct(to_sun, c, rng, counters, [&](const Vec3& l) { return phase_density(m, dot(w, l)); },
+                       [&](const Vec3&) { return x; });
 }
 
 bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& counters) const {
@@ -220,13 +257,11 @@ void ScenePaths::cross(State& s, const SurfaceHit& h, PixelRng& rng) const {
 bool ScenePaths::ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& rng, PathCounters& counters) const {
   const double albedo = scene_.ground.albedo[std::size_t(c)];
   if (albedo <= 0) return false;
-  const Vec3 l = toward_sun(rng);
-  if (next_event_ && l.y > 0) {
-    const double t = transmittance(geometry_.spawn(s.x, h.normal, l), l, c), p = l.y / kPi;
-    ++counters.shadow_rays;
-    if (t > 0)
-      s.radiance += s.throughput * albedo * p * t * scene_.light.sun[std::size_t(c)] / sun_pdf_ * power_heuristic(sun_pdf_, p);
-  }
+  const Vec3 to_sun = toward_sun(rng), x = s.x;
+  if (next_event_)
+    s.radiance += s.throughput * albedo *
+                  direct(to_sun, c, rng, counters, [](const Vec3& l) { return std::max(0.0, l.y) / kPi; },
+                         [&](const Vec3& l) { return geometry_.spawn(x, h.normal, l); });
   const double u = rng.uniform(), cos_o = std::sqrt(1 - u);  // cosine-weighted
   s.w = around(h.normal, cos_o, std::sqrt(u), rng.uniform());
   s.scatter_pdf = cos_o / kPi, s.after_nee = next_event_;

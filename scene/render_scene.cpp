@@ -55,11 +55,24 @@ CameraSpec read_camera(const toml::value& t) {
   return c;
 }
 
-LightSpec read_light(const toml::value& t) {
-  check_keys(t, "light.", {"sky", "sun_direction", "sun_radiance", "sun_angle", "environment"});
-  expect(!t.contains("environment"), t.contains("environment") ? t.at("environment") : t,
-         "light.environment: environment maps are not supported; give sky, sun_direction and sun_radiance");
+// The environment map's file, resolved against the scene's folder.
+std::string environment_file(const toml::value& t, const std::string& scene_path) {
+  const std::filesystem::path file =
+      std::filesystem::path(scene_path).parent_path() / text(t.at("environment"), "light.environment");
+  expect(std::filesystem::is_regular_file(file), t.at("environment"), "light.environment: no such file: " + file.string());
+  expect(!t.contains("sky"), t.contains("sky") ? t.at("sky") : t,
+         "light.sky: the environment map is the sky; give one of sky and environment");
+  return file.string();
+}
+
+LightSpec read_light(const toml::value& t, const std::string& scene_path) {
+  check_keys(t, "light.", {"sky", "sun_direction", "sun_radiance", "sun_angle", "environment", "environment_scale"});
   LightSpec l;
+  if (t.contains("environment")) l.environment = environment_file(t, scene_path);
+  if (t.contains("environment_scale")) {
+    expect(t.contains("environment"), t.at("environment_scale"), "light.environment_scale: there is no environment map");
+    l.environment_scale = bounded(t, "environment_scale", "light.", 0, 1e9);
+  }
   if (t.contains("sky")) l.sky = rgb(t.at("sky"), "light.sky", 0, 1e6);
   if (t.contains("sun_direction")) l.sun_direction = vec3(t.at("sun_direction"), "light.sun_direction");
   expect(length(l.sun_direction) > 0, t, "light.sun_direction: must not be 0");
@@ -151,7 +164,7 @@ RenderScene read_render_scene(const std::string& path) {
   s.path = path;
   check_keys(root, "", {"camera", "light", "media", "objects", "ground"});
   if (root.contains("camera")) s.camera = read_camera(table_at(root, "camera"));
-  if (root.contains("light")) s.light = read_light(table_at(root, "light"));
+  if (root.contains("light")) s.light = read_light(table_at(root, "light"), path);
   if (root.contains("ground")) s.ground = read_ground(table_at(root, "ground"));
   const auto& media = array_at(root, "media", "name, and sigma_s, sigma_a and g or a preset");
   std::set<std::string> names;

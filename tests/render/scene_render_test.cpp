@@ -7,16 +7,11 @@
 //    and the tessellation's own difference.
 //  - Scenes that cannot be rendered are refused in one line naming the file and the key.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
-#include <filesystem>
 #include <fstream>
 
 #include "image_compare.h"
-#include "stf/render/render.h"
-#include "stf/render/scene_geometry.h"
-#include "stf/render/scene_paths.h"
-#include "stf/scene/render_scene.h"
+#include "scene_fixture.h"
 #include "stf/scene/scene_error.h"
 
 namespace {
@@ -24,32 +19,9 @@ namespace {
 using namespace stf;
 namespace fs = std::filesystem;
 
-const std::string kMeshes = std::string(STF_SOURCE_DIR) + "/data/scenes/meshes/";
-
-class SceneRender : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("stf-scene-" + std::to_string(::getpid()));
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string write(const std::string& name, const std::string& text) {
-    std::ofstream((dir_ / name).string()) << text;
-    return (dir_ / name).string();
-  }
-  render::Image draw(const std::string& scene_text, int spp, std::uint64_t seed, bool next_event = true,
-                     int size = 24) {
-    const scene::RenderScene sc = scene::read_render_scene(write("scene.toml", scene_text));
-    const render::SceneGeometry geometry(sc, render::FreeRadius::kGrid, 64);
-    const render::ScenePaths paths(sc, geometry, nullptr, render::PathOptions{next_event, false});
-    render::ImageSettings s;
-    s.width = s.height = size, s.spp = spp, s.seed = seed, s.run.threads = 2;
-    return render::render_scene(sc, paths, s);
-  }
-  fs::path dir_;
-};
-
-const std::string kCamera = "[camera]\nposition = [0, 0.4, 2.2]\nlook_at = [0, 0, 0]\nfov = 35\n";
+using test::kCamera;
+using test::kMeshes;
+using SceneRender = test::SceneFixture;
 
 TEST_F(SceneRender, WhiteFurnaceIsExactlyOne) {
   const std::string scene = kCamera + R"(
@@ -81,24 +53,8 @@ ior = 1.5
   }
 }
 
-const std::string kLitScene = kCamera + R"(
-[light]
-sky = [0.4, 0.5, 0.6]
-sun_direction = [1, 2, 0.5]
-sun_radiance = [60, 50, 40]
-sun_angle = 4
-[[media]]
-name = "milky"
-sigma_s = [12, 9, 6]
-sigma_a = [0.05, 0.1, 0.4]
-g = 0.6
-[[objects]]
-mesh = ")" + kMeshes + R"(rounded_box.obj"
-medium = "milky"
-[ground]
-height = -0.36
-albedo = [0.7, 0.6, 0.5]
-)";
+const std::string kLitScene =
+    test::lit_box_scene("sky = [0.4, 0.5, 0.6]\nsun_direction = [1, 2, 0.5]\nsun_radiance = [60, 50, 40]\nsun_angle = 4");
 
 TEST_F(SceneRender, NextEventEstimationDrawsTheImageOfEscapingPaths) {
   const render::Image with = draw(kLitScene, 300, 5, true), without = draw(kLitScene, 1200, 6, false);
@@ -171,7 +127,7 @@ TEST_F(SceneRender, BadScenesAreRefusedNamingFileAndKey) {
       {medium + object + object, "objects[1]", "overlap"},
       {medium + object + "[ground]\nheight = 0\n", "objects[0]", "below the ground"},
       {medium + object + "[camera]\nposition = [0, 0, 0.5]\nlook_at = [0, 0, 1]\n", "objects[0]", "camera is inside"},
-      {medium + object + "[light]\nenvironment = \"sky.exr\"\n", "light.environment", "not supported"},
+      {medium + object + "[light]\nenvironment = \"sky.exr\"\n", "light.environment", "no such file"},
   };
   for (const auto& [text, key, why] : cases) {
     const std::string path = write("bad.toml", text);

@@ -14,6 +14,16 @@ struct Radiance {
   int width = 0, height = 0, channels = 1;
 };
 
+// An image as read: [height * width * channels] floats, row 0 at the top.
+struct ImageData {
+  int width = 0, height = 0, channels = 0;
+  std::vector<float> values;
+};
+
+// Reads any image OpenImageIO reads (OpenEXR, Radiance HDR, PNG, ...) as floats; throws
+// std::runtime_error naming the path and OpenImageIO's reason.
+ImageData read_image(const std::string& path);
+
 // Writes `image` as RGB float32 OpenEXR (grey written to all three channels) to `path`, in the
 // OpenEXR format whatever the path's name; throws std::runtime_error naming the path.
 void write_exr(const std::string& path, const Radiance& image);

@@ -3,10 +3,11 @@
 // the boundary shell), with the same geometry, boundaries, lights and next-event estimation:
 //  - each path carries one colour channel, whose medium coefficients it sees;
 //  - at every collision it tracks and at every ground hit, a shadow ray toward a point of the
-//    sun's disc, with the transmittance of the index-matched media it crosses (zero through a
-//    dielectric boundary or the ground), combined with the phase function's (or the ground's
-//    cosine) direction by the power heuristic; nothing at a stride's exit, whose direction then
-//    picks up the sun with weight 1;
+//    sun's disc (and, with an environment map, one toward a direction drawn from the map), with
+//    the transmittance of the index-matched media it crosses (zero through a dielectric
+//    boundary or the ground), combined with the phase function's (or the ground's cosine)
+//    direction by the power heuristic; nothing at a stride's exit, whose direction then picks
+//    up the sun and the map with weight 1;
 //  - deep inside a medium the shadow ray plays Russian roulette against the transmittance bound
 //    exp(-sigma_t free_radius), so brute force does not pay for rays that carry nothing.
 #pragma once
@@ -18,6 +19,7 @@
 #include <stf/pack.h>
 
 #include "stf/hg.h"
+#include "stf/render/environment.h"
 #include "stf/render/pixel_rng.h"
 #include "stf/render/scene_geometry.h"
 #include "stf/render/tracer.h"
@@ -66,6 +68,21 @@ class ScenePaths {
   // A direction toward a uniform point of the sun's disc (density sun_pdf_ per sr).
   Vec3 toward_sun(PixelRng& rng) const;
   double transmittance(Vec3 x, const Vec3& l, int c) const;
+  // What shadow rays from a vertex bring: one toward the sun (`to_sun`, drawn by toward_sun)
+  // and, with a map, one toward a direction drawn from it, each weighted by the power
+  // heuristic against the vertex's own density(l) of scattering into l; start(l) is where
+  // the ray toward l starts.
+  template <typename Density, typename Start>
+  double direct(const Vec3& to_sun, int c, PixelRng& rng, PathCounters& counters, const Density& density,
+                const Start& start) const;
+  // A direction toward a light, its density per sr and the light's radiance along it.
+  struct LightSample {
+    Vec3 l;
+    double pdf = 0, radiance = 0;
+  };
+  template <typename Density, typename Start>
+  double light_ray(const LightSample& light, int c, PathCounters& counters, const Density& density,
+                   const Start& start) const;
   void nee_at_collision(State& s, int c, double bound, PixelRng& rng, PathCounters& counters) const;
   bool ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& rng, PathCounters& counters) const;
   void cross(State& s, const SurfaceHit& h, PixelRng& rng) const;
@@ -79,6 +96,7 @@ class ScenePaths {
   std::vector<ChannelMedium> media_;            // [objects * 3]
   std::vector<std::shared_ptr<SphereLookup>> lookups_;  // [objects * 3], null where none
   std::vector<double> ior_;                     // per object
+  std::shared_ptr<const EnvironmentMap> environment_;  // in place of the sky, or null
   Vec3 sun_;
   bool next_event_ = true, ideal_strides_ = false;
   double cos_sun_ = 1, sun_pdf_ = 0;            // the disc's cosine and the uniform pdf over it
