@@ -29,7 +29,7 @@ EnvironmentMap::EnvironmentMap(int width, int height, std::vector<float> rgb)
   texels_ = AliasTable(weight);
 }
 
-EnvironmentMap EnvironmentMap::read(const std::string& path, double scale) {
+EnvironmentMap EnvironmentMap::from_file(const std::string& path, double scale) {
   const ImageData image = read_image(path);
   std::vector<float> rgb;
   rgb.reserve(std::size_t(image.width) * std::size_t(image.height) * 3);

@@ -50,7 +50,7 @@ double fresnel_dielectric(double cos_i, double n_i, double n_t) {
 std::shared_ptr<const EnvironmentMap> read_environment(const scene::RenderScene& scene) {
   if (scene.light.environment.empty()) return nullptr;
   try {
-    return std::make_shared<const EnvironmentMap>(EnvironmentMap::read(scene.light.environment, scene.light.environment_scale));
+    return std::make_shared<const EnvironmentMap>(EnvironmentMap::from_file(scene.light.environment, scene.light.environment_scale));
   } catch (const std::exception& e) {
     throw scene::SceneError(scene.path + ": light.environment: " + e.what());
   }

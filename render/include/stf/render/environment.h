@@ -28,7 +28,7 @@ class EnvironmentMap {
   EnvironmentMap(int width, int height, std::vector<float> rgb);
   // The map in `path` (any image OpenImageIO reads: one channel is grey, else the first three
   // are RGB) times `scale`; throws std::runtime_error naming the path and why.
-  static EnvironmentMap read(const std::string& path, double scale);
+  static EnvironmentMap from_file(const std::string& path, double scale);
 
   double radiance(const Vec3& direction, int channel) const;
   // A direction drawn from (u1, u2) in [0, 1)^2, its density per steradian in `pdf` (0 and any

@@ -23,7 +23,7 @@ struct LightSpec {
   Vec3 sun_direction{1, 1, -1};  // towards the sun, unit after reading
   Rgb sun{50, 50, 50};        // radiance within the sun's disc, added to the sky's
   double sun_angle = 5;       // half-angle of the disc, degrees
-  // A latitude-longitude map in place of the sky (stf/render/environment.h), resolved against
+  // A latitude-longitude map in place of the sky (docs/formats.md, "Render scene"), resolved against
   // the scene's folder, and its scale; "" for none.
   std::string environment;
   double environment_scale = 1;
