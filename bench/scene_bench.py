@@ -52,11 +52,13 @@ def toml_value(v):
 
 
 def scaled_scene(path, factor, out):
-    """The scene with every medium's coefficients times `factor` and mesh paths made absolute."""
+    """The scene with every medium's coefficients times `factor` and file paths made absolute."""
     with open(path, "rb") as f:
         scene = tomllib.load(f)
     folder = os.path.dirname(os.path.abspath(path))
     lines = []
+    if "environment" in scene.get("light", {}):
+        scene["light"]["environment"] = os.path.join(folder, scene["light"]["environment"])
     for key in ("camera", "light", "ground"):
         if key in scene:
             lines.append(f"[{key}]")
