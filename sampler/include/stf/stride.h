@@ -1,10 +1,11 @@
 // The stride form of a fitted model: one jump of a path through a precomputed sphere, for a
 // renderer's inner loop (docs/render.md, "The stride form").
 //
-// It draws what ShellSampler::sample draws, exactly, but everything that depends only on the
-// model is resolved when the form is built:
+// It draws what ShellSampler::sample draws (exactly, but for exit angles within 1e-10 rad), with
+// everything that depends only on the model resolved when the form is built:
 //  - one alias table picks the part (once scattered, uncollided) or the smooth part's alpha
-//    bin, its remainder placing the exit point in the bin;
+//    bin, its remainder placing the exit point in the bin, through the bin's polynomial of
+//    the exit angle where it has one (kAngleError);
 //  - each bin keeps its cosine edges (also as 1 - cos and 1 + cos, so sin(alpha) keeps its
 //    digits near the poles), its tilt and the sine and cosine of its middle, so the turn with
 //    the exit angle needs no libm trigonometry: the angle from the middle is a short series in
