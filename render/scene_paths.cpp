@@ -36,6 +36,7 @@ struct ScenePaths::State {
   bool after_nee = false;    // heading straight on from a vertex that cast a shadow ray
   double scatter_pdf = 0;    // that vertex's density (per sr) of the direction w
   double bound = -1;         // the free radius at x, when known
+  bool tight = false;        // bound is the tightest the geometry gives at x (no closer look left)
 };
 
 double fresnel_dielectric(double cos_i, double n_i, double n_t) {
@@ -168,12 +169,16 @@ void ScenePaths::nee_at_collision(State& s, int c, double bound, PixelRng& rng, 
 
 bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& counters) const {
   const ChannelMedium& m = medium(s.inside, c);
-  if (s.bound < 0) s.bound = geometry_.free_radius(s.x, s.inside), ++counters.distance_queries;
+  if (s.bound < 0) {
+    s.bound = geometry_.free_radius(s.x, s.inside), ++counters.distance_queries;
+    s.tight = geometry_.method() != FreeRadius::kGrid;  // an exact query leaves nothing closer
+  }
   if (const SphereLookup* spheres = this->spheres(s.inside, c)) {
     double r;
     int k = spheres->find(m.sigma_t, s.bound, r);
-    if (k < 0 && geometry_.method() == FreeRadius::kGrid) {  // the one-cell bound fits none: look closer
-      s.bound = std::max(s.bound, geometry_.tight_free_radius(s.x, s.inside)), ++counters.distance_queries;
+    if (k < 0 && !s.tight) {  // the one-cell bound fits none: look closer
+      look_closer(s);
+      ++counters.distance_queries;
       k = spheres->find(m.sigma_t, s.bound, r);
     }
     if (k >= 0) {
@@ -183,8 +188,7 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
     }
   }
   const double t = -std::log(rng.uniform_open0()) * m.inv_sigma_t;
-  if (t >= s.bound && geometry_.method() == FreeRadius::kGrid)  // before a ray, a closer look
-    s.bound = std::max(s.bound, geometry_.tight_free_radius(s.x, s.inside)), ++counters.distance_queries;
+  if (t >= s.bound && !s.tight) look_closer(s), ++counters.distance_queries;  // before a ray
   if (t >= s.bound) {  // the flight may reach the boundary
     const SurfaceHit h = geometry_.trace(s.x, s.w, t);
     if (h.found) {
@@ -196,13 +200,21 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
   s.x += t * s.w;
   ++counters.collisions;
   s.throughput *= m.albedo;
+  // Carried, the bound loses the flight; refreshed, it is the closest look at once: in the
+  // boundary shell the next step would otherwise ask again, for a sphere or before a ray.
+  s.tight = false;
   if (s.bound - t >= m.refresh_below) s.bound -= t;
-  else s.bound = geometry_.free_radius(s.x, s.inside), ++counters.distance_queries;
+  else s.bound = 0, look_closer(s), ++counters.distance_queries;
   nee_at_collision(s, c, s.bound, rng, counters);
   const CosSin<double> cs = sample_hg(m.hg, rng.uniform());
   s.scatter_pdf = phase_density(m, cs.cos_theta), s.after_nee = next_event_;
   s.w = around(s.w, cs.cos_theta, cs.sin_theta, rng.uniform());
   return true;
+}
+
+void ScenePaths::look_closer(State& s) const {
+  s.bound = std::max(s.bound, geometry_.tight_free_radius(s.x, s.inside));
+  s.tight = true;
 }
 
 void ScenePaths::stride(State& s, const SphereLookup& spheres, int k, double r, PixelRng& rng, PathCounters& counters) const {

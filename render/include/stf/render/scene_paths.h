@@ -87,6 +87,8 @@ class ScenePaths {
   bool ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& rng, PathCounters& counters) const;
   void cross(State& s, const SurfaceHit& h, PixelRng& rng) const;
   bool medium_step(State& s, int c, PixelRng& rng, PathCounters& counters) const;
+  // The tightest bound the geometry gives at the path's point (the grid's eight cells).
+  void look_closer(State& s) const;
   void stride(State& s, const SphereLookup& spheres, int k, double r, PixelRng& rng, PathCounters& counters) const;
   void ideal_stride(State& s, const ChannelMedium& m, double r, PixelRng& rng, PathCounters& counters) const;
   bool outside_step(State& s, int c, PixelRng& rng, PathCounters& counters) const;
