@@ -36,9 +36,6 @@ class EnvironmentMap {
   Vec3 sample(double u1, double u2, double& pdf) const;
   double pdf(const Vec3& direction) const;
 
-  int width() const { return width_; }
-  int height() const { return height_; }
-
  private:
   // The texel that holds a direction.
   std::size_t texel(const Vec3& direction, double& sin_theta) const;
