@@ -12,8 +12,11 @@ EnvironmentMap::EnvironmentMap(int width, int height, std::vector<float> rgb)
     : width_(width), height_(height), rgb_(std::move(rgb)) {
   if (width < 1 || height < 1 || rgb_.size() != std::size_t(width) * std::size_t(height) * 3)
     throw std::invalid_argument("an environment map needs width x height x 3 values");
-  for (const float v : rgb_)
-    if (!(v >= 0) || !std::isfinite(v)) throw std::invalid_argument("environment map values must be finite and >= 0");
+  for (std::size_t i = 0; i < rgb_.size(); ++i)
+    if (!(rgb_[i] >= 0) || !std::isfinite(rgb_[i]))
+      throw std::invalid_argument("pixel (" + std::to_string(i / 3 % std::size_t(width)) + ", " +
+                                  std::to_string(i / 3 / std::size_t(width)) + ") is " + std::to_string(rgb_[i]) +
+                                  ": radiance must be finite and >= 0");
   std::vector<double> weight(std::size_t(width) * std::size_t(height));
   double total = 0;
   for (int v = 0; v < height; ++v) {
@@ -34,15 +37,18 @@ EnvironmentMap EnvironmentMap::from_file(const std::string& path, double scale) 
   std::vector<float> rgb;
   rgb.reserve(std::size_t(image.width) * std::size_t(image.height) * 3);
   for (std::size_t p = 0; p < std::size_t(image.width) * std::size_t(image.height); ++p)
-    for (int c = 0; c < 3; ++c) {
-      const float v = image.values[p * std::size_t(image.channels) + std::size_t(image.channels >= 3 ? c : 0)];
-      if (!(v >= 0) || !std::isfinite(v))
-        throw std::runtime_error(path + ": pixel (" + std::to_string(p % std::size_t(image.width)) + ", " +
-                                 std::to_string(p / std::size_t(image.width)) + ") is " + std::to_string(v) +
-                                 ": radiance must be finite and >= 0");
-      rgb.push_back(float(v * scale));
-    }
-  return EnvironmentMap(image.width, image.height, std::move(rgb));
+    for (int c = 0; c < 3; ++c)
+      rgb.push_back(float(scale * image.values[p * std::size_t(image.channels) + std::size_t(image.channels >= 3 ? c : 0)]));
+  try {
+    return EnvironmentMap(image.width, image.height, std::move(rgb));
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(path + ": " + e.what());
+  }
+}
+
+double EnvironmentMap::density(std::size_t texel, double sin_theta) const {
+  const double p = probability_[texel];
+  return p > 0 && sin_theta > 0 ? p * width_ * height_ / (2 * kPi * kPi * sin_theta) : 0.0;
 }
 
 std::size_t EnvironmentMap::texel(const Vec3& d, double& sin_theta) const {
@@ -61,8 +67,8 @@ double EnvironmentMap::radiance(const Vec3& direction, int channel) const {
 
 double EnvironmentMap::pdf(const Vec3& direction) const {
   double sin_theta;
-  const double p = probability_[texel(direction, sin_theta)];
-  return p > 0 && sin_theta > 0 ? p * width_ * height_ / (2 * kPi * kPi * sin_theta) : 0.0;
+  const std::size_t t = texel(direction, sin_theta);
+  return density(t, sin_theta);
 }
 
 Vec3 EnvironmentMap::sample(double u1, double u2, double& pdf) const {
@@ -73,7 +79,7 @@ Vec3 EnvironmentMap::sample(double u1, double u2, double& pdf) const {
   const int v = t / width_, u = t % width_;
   const double theta = kPi * (v + u2) / height_, phi = 2 * kPi * (u + in_texel) / width_ - kPi;
   const double sin_theta = std::sin(theta);
-  pdf = sin_theta > 0 ? probability_[std::size_t(t)] * width_ * height_ / (2 * kPi * kPi * sin_theta) : 0.0;
+  pdf = density(std::size_t(t), sin_theta);
   return {sin_theta * std::sin(phi), std::cos(theta), -sin_theta * std::cos(phi)};
 }
 

@@ -24,7 +24,8 @@ namespace stf::render {
 
 class EnvironmentMap {
  public:
-  // [height * width * 3] linear RGB, row 0 at the top; every value finite and >= 0.
+  // [height * width * 3] linear RGB, row 0 at the top; every value finite and >= 0 (else
+  // std::invalid_argument naming the first pixel that is not).
   EnvironmentMap(int width, int height, std::vector<float> rgb);
   // The map in `path` (any image OpenImageIO reads: one channel is grey, else the first three
   // are RGB) times `scale`; throws std::runtime_error naming the path and why.
@@ -39,6 +40,8 @@ class EnvironmentMap {
  private:
   // The texel that holds a direction.
   std::size_t texel(const Vec3& direction, double& sin_theta) const;
+  // The density per steradian of a draw in `texel` at polar angle theta.
+  double density(std::size_t texel, double sin_theta) const;
 
   int width_ = 0, height_ = 0;
   std::vector<float> rgb_;
