@@ -184,7 +184,9 @@ TEST(Boundary, GridBoundIsNeverAboveTheTrueDistance) {
       EXPECT_GE(g, exact - std::sqrt(3.0) * (exact < grid.band() ? 1 : 5) * grid.cell()) << name;
       slack += exact - g;
     }
-    EXPECT_LT(slack / double(points.size()), 2 * grid.cell()) << name;
+    // On average within 1.25 cells: 0.4-1.0 here, where the bound from the one coarse centre
+    // that holds a deep cell fell 1.3-1.6 cells short in the icosphere and the rounded box.
+    EXPECT_LT(slack / double(points.size()), 1.25 * grid.cell()) << name;
     EXPECT_EQ(grid.bytes() % sizeof(float), 0u);
   }
 }

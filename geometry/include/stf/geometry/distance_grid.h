@@ -5,9 +5,9 @@
 //
 // v is exact within a band of three cells of the surface (every triangle's neighbourhood
 // rasterised, point-triangle distances in double), where the smallest spheres need it; deeper
-// it is the band's width or the exact distance at the centre of the cell 4 times as large that
-// holds c less the distance between the centres, whichever is larger. Building costs one Embree
-// query per coarse cell instead of one per cell.
+// it is the band's width or the best bound from the exact distances at the eight centres of cells
+// 4 times as large around c (a centre's distance less its distance to c), whichever is larger.
+// Building costs one Embree query per coarse cell instead of one per cell.
 #pragma once
 
 #include <algorithm>
@@ -63,6 +63,8 @@ class DistanceGrid {
   }
   Vec3 centre(int i, int j, int k) const { return origin_ + cell_ * Vec3{i + 0.5, j + 0.5, k + 0.5}; }
   std::vector<double> coarse(const Boundary& boundary, const RunContext& run);
+  // The best bound at cell (i, j, k)'s centre from the coarse grid's exact distances.
+  double deep_bound(int i, int j, int k) const;
   void rasterise_band(const Boundary& boundary, std::vector<double>& near, const RunContext& run) const;
 
   Vec3 origin_;
