@@ -37,6 +37,10 @@ timed images at the last of --spp instead (as --quick does). Usage:
                         [--figure-size 256] [--figure-spp N] [--quick]
 --taus are media of albedo 0.999, g 0.8; --dense adds tau 300 and 1000 at albedo 0.9999 and tau
 1000 at albedo 0.99999, g 0.85 (a cumulus).
+With scene files (bench/render_bench.py SCENE.toml [MORE.toml] [--size N] [--spp N] [--out DIR]) it
+is bench/scene_bench.py with --ideal and --pictures: the same measures for `stf render SCENE.toml`
+in meshes, in colour, behind glass, at the largest of --spp (default 60 there); its other options
+(--densities, --free-radius, --repeats) pass through.
 Needs build/stf and Debian's python3-matplotlib and python3-h5py.
 """
 import argparse
@@ -215,7 +219,20 @@ def print_table(rows):
               f"{row['max_block_z']:.2f} | {row['precompute_seconds']:.0f} | {frames} |")
 
 
+def scene_bench(argv):
+    """Hands scene files to bench/scene_bench.py (with the bound and the pictures)."""
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--spp", default="60")
+    ap.add_argument("--out", default=os.path.join(ROOT, "out", "scene_bench"))
+    a, rest = ap.parse_known_args(argv)
+    spp = max(int(s) for s in a.spp.split(","))
+    script = os.path.join(ROOT, "bench", "scene_bench.py")
+    os.execv(sys.executable, [sys.executable, script, *rest, "--spp", str(spp), "--out", a.out, "--ideal", "--pictures"])
+
+
 def main():
+    if any(arg.endswith(".toml") for arg in sys.argv[1:]):
+        scene_bench(sys.argv[1:])
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "render_bench"))
     ap.add_argument("--taus", default="10,30,100,300")

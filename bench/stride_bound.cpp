@@ -14,6 +14,13 @@
 //   stride_bound HITTING_PATHS TAU ALBEDO G TAU_MIN RATIO [TAU_MAX]
 //                                                             one medium and ladder (sigma_t 100),
 //                                                             its spheres up to TAU_MAX
+//   stride_bound --scene SCENE.toml PACK [SIZE] [SPP]         a render scene (stf render SCENE.toml):
+//                                                             its camera paths by brute force and
+//                                                             with ideal strides through PACK's
+//                                                             spheres, as stf render --ideal-strides
+// In a scene the counts are per camera path (SIZE x SIZE pixels, default 64, SPP each, default
+// 16), with the scene's distance grid deciding where spheres fit; PACK is the scene's render pack
+// (`stf pack CACHE/*.model.h5` after `stf render SCENE.toml --method stf --cache CACHE`).
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -23,9 +30,13 @@
 #include <string>
 #include <vector>
 
+#include "stf/pack.h"
 #include "stf/render/pixel_rng.h"
+#include "stf/render/render.h"
 #include "stf/render/render_scene.h"
+#include "stf/render/scene_geometry.h"
 #include "stf/render/tracer.h"
+#include "stf/scene/render_scene.h"
 
 namespace {
 
@@ -144,9 +155,46 @@ stf::Medium medium(double tau, double albedo, double g) {
   return m;
 }
 
+// A render scene's bound: brute force's collisions B per camera path against the shell
+// collisions C and strides N of ideal strides through the pack's spheres, and B / (C + c N) at
+// stride costs c of 2 to 6 collisions.
+int scene_bound(const std::string& scene_file, const std::string& pack_file, int size, long spp) {
+  std::vector<stf::PackEntry> pack;
+  std::string error;
+  if (!stf::read_pack_file(pack_file, pack, error)) {
+    std::fprintf(stderr, "stride_bound: %s\n", error.c_str());
+    return 2;
+  }
+  const stf::scene::RenderScene scene = stf::scene::read_render_scene(scene_file);
+  const stf::render::SceneGeometry geometry(scene, stf::render::FreeRadius::kGrid);
+  stf::render::ImageSettings settings;
+  settings.width = settings.height = size, settings.spp = spp;
+  const stf::render::Image brute = stf::render::render_scene(scene, stf::render::ScenePaths(scene, geometry), settings);
+  const stf::render::ScenePaths ideal_paths(scene, geometry, &pack, {true, true});
+  const stf::render::Image ideal = stf::render::render_scene(scene, ideal_paths, settings);
+  const double paths = double(brute.paths), b = double(brute.collisions) / paths;
+  const double c = double(ideal.collisions) / paths, n = double(ideal.strides) / paths;
+  std::printf("{\"scene\": \"%s\", \"pack\": \"%s\", \"camera_paths\": %.0f, \"brute_collisions\": %.2f, "
+              "\"shell_collisions\": %.2f, \"strides\": %.2f, \"collisions_inside_ideal_strides\": %.2f, "
+              "\"speedup_free_strides\": %.2f, \"stride_cost_for_10x\": %.3f, \"bound_at_stride_cost\": {",
+              scene_file.c_str(), pack_file.c_str(), paths, b, c, n, double(ideal.ideal_collisions) / paths, b / c,
+              (b / 10 - c) / n);
+  for (int cost = 2; cost <= 6; ++cost) std::printf("%s\"%d\": %.3f", cost == 2 ? "" : ", ", cost, b / (c + cost * n));
+  std::printf("}}\n");
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc >= 4 && std::string(argv[1]) == "--scene") {
+    try {
+      return scene_bound(argv[2], argv[3], argc > 4 ? std::atoi(argv[4]) : 64, argc > 5 ? std::atol(argv[5]) : 16);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "stride_bound: %s\n", e.what());
+      return 2;
+    }
+  }
   const long paths = argc > 1 ? std::atol(argv[1]) : 20000;
   if (argc == 7 || argc == 8) {
     const stf::Medium m = medium(std::atof(argv[2]), std::atof(argv[3]), std::atof(argv[4]));
