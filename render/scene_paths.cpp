@@ -63,6 +63,9 @@ ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geo
       next_event_(options.next_event), ideal_strides_(options.ideal_strides) {
   cos_sun_ = std::cos(scene.light.sun_angle * kPi / 180);
   sun_pdf_ = 1 / (2 * kPi * (1 - cos_sun_));
+  // Channels (of any object) of one albedo and g stride through the same spheres: one lookup
+  // for them all, whose samplers are built once.
+  std::vector<std::pair<std::pair<double, double>, std::shared_ptr<SphereLookup>>> built;
   for (const scene::ObjectSpec& o : scene.objects) {
     ior_.push_back(o.ior);
     const scene::MediumSpec& spec = scene.media[std::size_t(o.medium)];
@@ -71,10 +74,14 @@ ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geo
       m.sigma_t = spec.sigma_t(c), m.inv_sigma_t = 1 / m.sigma_t, m.albedo = spec.sigma_s[std::size_t(c)] / m.sigma_t;
       m.g = spec.g[std::size_t(c)], m.hg = HgParams<double>::make(m.g);
       std::shared_ptr<SphereLookup> lookup;
-      if (pack) {
+      const auto same = std::find_if(built.begin(), built.end(), [&](const auto& b) { return b.first == std::pair(m.albedo, m.g); });
+      if (same != built.end()) {
+        lookup = same->second;
+      } else if (pack) {
         Medium channel{spec.sigma_s[std::size_t(c)], spec.sigma_a[std::size_t(c)], m.g, 1};
         const std::vector<PackEntry> mine = entries_for(channel, *pack);
         if (!mine.empty()) lookup = std::make_shared<SphereLookup>(mine, mine.front().name);
+        built.push_back({{m.albedo, m.g}, lookup});
       }
       m.refresh_below = std::log(1 / kNeeRoulette) * m.inv_sigma_t;
       if (lookup) m.refresh_below = std::max(m.refresh_below, lookup->tau(lookup->size() - 1) * m.inv_sigma_t);

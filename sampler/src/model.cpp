@@ -52,9 +52,21 @@ namespace {
 
 // E[factor(w)] under a lobe: Gauss-Legendre over the lobe's own quantile of cos(theta) (so a
 // narrow lobe needs no finer rule than a broad one) times a uniform azimuth rule.
+constexpr int kAzimuths = 32;
+
+// cos and sin of the azimuth rule's angles, computed once (a pack's models ask for them
+// 2048 times a lobe).
+struct AzimuthRule {
+  double cos[kAzimuths], sin[kAzimuths];
+  AzimuthRule() {
+    for (int a = 0; a < kAzimuths; ++a) cos[a] = std::cos(2 * kPi * (a + 0.5) / kAzimuths), sin[a] = std::sin(2 * kPi * (a + 0.5) / kAzimuths);
+  }
+};
+
 template <typename Factor>
 double mean_under_lobe(const VmfLobe& l, Factor factor) {
-  constexpr int kPanels = 8, kAzimuths = 32;
+  constexpr int kPanels = 8;
+  static const AzimuthRule rule;
   const Frame frame = Frame::around(l.mean);
   double sum = 0;
   for (int p = 0; p < kPanels; ++p)
@@ -62,10 +74,7 @@ double mean_under_lobe(const VmfLobe& l, Factor factor) {
         [&](double u) {
           const double c = sample_vmf_cos(l.kappa, u), s = std::sqrt(std::max(0.0, 1 - c * c));
           double ring = 0;
-          for (int a = 0; a < kAzimuths; ++a) {
-            const double phi = 2 * kPi * (a + 0.5) / kAzimuths;
-            ring += factor(frame.to_world({s * std::cos(phi), s * std::sin(phi), c}));
-          }
+          for (int a = 0; a < kAzimuths; ++a) ring += factor(frame.to_world({s * rule.cos[a], s * rule.sin[a], c}));
           return ring / kAzimuths;
         },
         double(p) / kPanels, double(p + 1) / kPanels);
