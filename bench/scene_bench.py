@@ -19,7 +19,11 @@ third run with ideal strides (stf render --ideal-strides: the true transport thr
 sphere) gives the shell collisions and strides of a perfect model, and the bound
 B / (C_ideal + c N_ideal) at the same c.
 
-Writes OUT/scene_bench.json and, with --pictures, OUT/NAME_pair.png (brute | strided | z-map).
+Writes OUT/scene_bench.json and, with --pictures, OUT/NAME_pair.png (brute | strided | z-map);
+with several --densities, OUT/NAME_density.png: the equal-error speed-up and the bound against
+the density, beside the learned-STF renderer's teaser figures (Leonard, Hoehlein, Westermann,
+EG 2021: 2.2, 3.9, 7.5 and 11.8x at 1/8, 1/4, 1/2 and 1 times its scenes' density, at equal
+sample count with approximate steps).
 Usage:
   bench/scene_bench.py SCENE.toml [MORE.toml] [--out DIR] [--size 64] [--spp 60]
                        [--densities 1] [--free-radius grid,query] [--repeats 3] [--ideal] [--pictures]
@@ -169,6 +173,29 @@ def picture(mb, ms, z, path, exposure):
     fig.savefig(path, dpi=100)
 
 
+# The learned-STF renderer's speed-ups at 1/8 .. 1 times its scenes' density (equal sample count).
+THEIRS = {0.125: 2.2, 0.25: 3.9, 0.5: 7.5, 1.0: 11.8}
+
+
+def density_plot(rows, factors, path):
+    """Speed-up and bound against density (one scene's rows, one per factor), beside THEIRS."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4.2))
+    ax.plot(factors, [r["equal_error_speedup"] for r in rows], "o-", label="stf strides (equal error)")
+    ax.plot(factors, [r.get("bound_at_measured_cost", np.nan) for r in rows], "s--", label="bound B / (C + c N) at the measured c")
+    ax.plot(list(THEIRS), list(THEIRS.values()), "^:", label="learned STF, EG 2021 (equal sample count, approximate steps)")
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel("density (times the scene's)")
+    ax.set_ylabel("speed-up over brute force")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("scenes", nargs="+")
@@ -196,7 +223,14 @@ def main():
                 pack_seconds = json.load(f)["precompute_seconds"]
             for free_radius in a.free_radius.split(","):
                 rows.append(compare(a, stf, scene, name, free_radius, pack_seconds))
+                rows[-1]["density"] = factor
                 print(json.dumps(rows[-1]), flush=True)
+        factors = [float(x) for x in a.densities.split(",")]
+        if len(factors) > 1:
+            base = os.path.splitext(os.path.basename(path))[0]
+            for free_radius in a.free_radius.split(","):
+                mine = [r for r in rows if r["scene"].startswith(base) and r["free_radius"] == free_radius][-len(factors):]
+                density_plot(mine, factors, os.path.join(a.out, f"{base}_{free_radius}_density.png"))
     with open(os.path.join(a.out, "scene_bench.json"), "w") as f:
         json.dump({"size": a.size, "spp": a.spp, "rows": rows}, f, indent=2)
 
