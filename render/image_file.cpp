@@ -1,25 +1,62 @@
 #include "stf/render/image_file.h"
 
-#include <OpenImageIO/imageio.h>
+#include <dlfcn.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
-#include <memory>
+#include <cstdlib>
 #include <stdexcept>
+
+#include "image_codec.h"
 
 namespace stf::render {
 
 namespace {
 
-// Opens `path` for writing in `format` ("openexr", "png"), writes `pixels` and closes it;
-// OpenImageIO's error, naming the path, on any failure.
-template <typename T>
-void write_with(const std::string& format, const std::string& path, const OIIO::ImageSpec& spec,
-                const std::vector<T>& pixels) {
-  std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(format);
-  if (!out) throw std::runtime_error(path + ": no " + format + " writer: " + OIIO::geterror());
-  const bool written = out->open(path, spec) && out->write_image(spec.format, pixels.data()) && out->close();
-  if (!written) throw std::runtime_error(path + ": " + out->geterror());
+constexpr const char* kCodecName = "libstf_image_codec.so";
+
+std::string folder_of(const std::string& path) {
+  const std::size_t slash = path.rfind('/');
+  return slash == std::string::npos ? "." : path.substr(0, slash);
+}
+
+// Where the codec may be: $STF_IMAGE_CODEC alone when set; else beside the file that holds this
+// code (the stf program, or the Python module, whose folder's parent holds it in a build tree),
+// beside the running program or in the library folder of its install prefix, and where
+// `cmake --install` puts it by default.
+std::vector<std::string> codec_candidates() {
+  if (const char* given = std::getenv("STF_IMAGE_CODEC")) return {given};
+  std::vector<std::string> where;
+  Dl_info info{};
+  if (dladdr(reinterpret_cast<void*>(&image_codec), &info) && info.dli_fname && std::string(info.dli_fname).find('/') != std::string::npos) {
+    where.push_back(folder_of(info.dli_fname) + "/" + kCodecName);
+    where.push_back(folder_of(info.dli_fname) + "/../" + kCodecName);
+  }
+  char exe[4096];
+  const ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+  if (n > 0) {
+    const std::string program = folder_of(std::string(exe, std::size_t(n)));
+    where.push_back(program + "/" + kCodecName);
+    where.push_back(program + "/../" STF_IMAGE_CODEC_LIBDIR "/stf/" + kCodecName);  // an installed stf
+  }
+  where.push_back(STF_IMAGE_CODEC_INSTALLED);
+  return where;
+}
+
+const ImageCodec* load_codec() {
+  std::string why;
+  for (const std::string& path : codec_candidates()) {
+    if (void* module = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL)) {
+      using Export = const ImageCodec* (*)();
+      if (auto get = reinterpret_cast<Export>(dlsym(module, "stf_image_codec"))) return get();
+      why = path + " has no stf_image_codec";
+      continue;
+    }
+    if (why.empty()) why = dlerror();
+  }
+  throw std::runtime_error(std::string("cannot load the image codec ") + kCodecName +
+                           " (images are read and written through it and OpenImageIO): " + why);
 }
 
 double filmic(double x) {
@@ -42,18 +79,14 @@ void check_shape(const Radiance& image) {
 
 }  // namespace
 
+const ImageCodec& image_codec() {
+  static const ImageCodec* codec = load_codec();  // tried again after a failure (the exception ends the initialisation)
+  return *codec;
+}
+
 ImageData read_image(const std::string& path) {
-  std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::open(path);
-  if (!in) throw std::runtime_error(path + ": " + OIIO::geterror());
-  const OIIO::ImageSpec& spec = in->spec();
-  ImageData image{spec.width, spec.height, spec.nchannels, {}};
-  const double count = double(spec.width) * double(spec.height) * double(spec.nchannels);
-  if (spec.width < 1 || spec.height < 1 || spec.nchannels < 1 || spec.depth > 1 || count > 1e9)
-    throw std::runtime_error(path + ": not a 2D image of at most 1e9 values (" + std::to_string(spec.width) + " x " +
-                             std::to_string(spec.height) + " x " + std::to_string(spec.nchannels) + ")");
-  image.values.resize(std::size_t(count));
-  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.values.data()))
-    throw std::runtime_error(path + ": " + in->geterror());
+  ImageData image;
+  image_codec().read(path, image.width, image.height, image.channels, image.values);
   return image;
 }
 
@@ -63,10 +96,7 @@ void write_exr(const std::string& path, const Radiance& image) {
   std::vector<float> rgb(pixels * 3);
   for (std::size_t p = 0; p < pixels; ++p)
     for (int c = 0; c < 3; ++c) rgb[p * 3 + std::size_t(c)] = float(value(image, p, c));
-  OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::FLOAT);
-  spec.attribute("compression", "zip");
-  spec.attribute("Software", "stf render");
-  write_with("openexr", path, spec, rgb);
+  image_codec().write_exr(path, image.width, image.height, rgb);
 }
 
 std::vector<std::uint8_t> tone_map(const Radiance& image, double exposure_stops) {
@@ -83,10 +113,7 @@ std::vector<std::uint8_t> tone_map(const Radiance& image, double exposure_stops)
 }
 
 void write_png(const std::string& path, const Radiance& image, double exposure_stops) {
-  OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
-  spec.attribute("oiio:ColorSpace", "sRGB");
-  spec.attribute("Software", "stf render");
-  write_with("png", path, spec, tone_map(image, exposure_stops));
+  image_codec().write_png(path, image.width, image.height, tone_map(image, exposure_stops));
 }
 
 }  // namespace stf::render

@@ -210,4 +210,16 @@ TEST_F(Render, BadInputIsOneLineAndNoFile) {
   EXPECT_FALSE(fs::exists(out("i.h5")));
 }
 
+// Images go through a module loaded on first use (render/image_codec.h); where it cannot be
+// loaded, one line says which and why, and nothing is written.
+TEST_F(Render, AMissingImageCodecIsOneLineAndNoFile) {
+  ::setenv("STF_IMAGE_CODEC", out("missing/libstf_image_codec.so").c_str(), 1);
+  const Result r = stf("render --sigma-s 2 --sigma-a 0.1 --g 0.3 --spp 4 --method brute -o " + out("i.h5") + " --png " +
+                       out("i.png"));
+  ::unsetenv("STF_IMAGE_CODEC");
+  expect_one_line(r, "libstf_image_codec.so", "no image codec");
+  EXPECT_FALSE(fs::exists(out("i.h5")));
+  EXPECT_FALSE(fs::exists(out("i.png")));
+}
+
 }  // namespace
