@@ -240,7 +240,7 @@ void run_eval(const EvalOptions& o) {
 }  // namespace
 
 void add_fit_options(CLI::App& cmd, std::string& model, std::string& threads) {
-  cmd.add_option("--model", model, "auto (what scenes and render use: hvmf:auto), vmf:K, vmf:auto, hvmf:K, hvmf:auto, sh:L or sh:auto")
+  cmd.add_option("--model", model, "auto (what scenes and render use: hvmf:auto), vmf:K, vmf:auto, hvmf:K, hvmf:auto, lvmf:K, lvmf:auto, sh:L or sh:auto")
       ->capture_default_str();
   cmd.add_option("--threads", threads, "Worker threads (0: all cores)")->capture_default_str();
 }

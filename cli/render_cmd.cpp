@@ -21,6 +21,7 @@
 #include "stf/render/render.h"
 #include "stf/render/render_scene.h"
 #include "stf/core/clock.h"
+#include "stf/fit/fit_settings.h"
 
 namespace stf::cli {
 
@@ -41,7 +42,7 @@ std::string cache_folder(const RenderOptions& o) {
 scene::Scene render_scene(const RenderOptions& o) {
   scene::Scene sc;
   sc.path = "stf render";
-  sc.settings = render_pack_settings(o.tolerance);
+  sc.settings = render_pack_settings(o.tolerance, o.model);
   const Medium& m = o.medium;
   const render::PackLadder ladder = render::pack_ladder(m);
   sc.settings.tau_skip = ladder.smallest;
@@ -52,13 +53,13 @@ scene::Scene render_scene(const RenderOptions& o) {
 
 }  // namespace
 
-scene::Settings render_pack_settings(double tolerance) {
+scene::Settings render_pack_settings(double tolerance, const std::string& model) {
   scene::Settings s;
   s.tolerance = tolerance;
   s.paths = 4'000'000;
   s.grid = "healpix:16";
   s.alpha_bins = 45;
-  s.model = "hvmf:auto";
+  s.model = model;
   return s;
 }
 
@@ -122,6 +123,13 @@ render::ImageSettings image_settings(const RenderOptions& o, const CLI::App& cmd
   if (cmd.count("--pack") && cmd.count("--tolerance"))
     fail("--pack and --tolerance exclude each other: --tolerance builds the pack");
   if (!(o.tolerance > 0 && o.tolerance < 1)) fail("--tolerance must be in (0, 1), got " + std::to_string(o.tolerance));
+  if (!stf && cmd.count("--model")) fail("--model applies to --method stf only");
+  if (cmd.count("--pack") && cmd.count("--model")) fail("--pack and --model exclude each other: --model builds the pack");
+  try {
+    fit::parse_model_spec(o.model);
+  } catch (const std::invalid_argument& e) {
+    fail(e.what());
+  }
   if (!std::isfinite(o.exposure)) fail("--exposure must be a finite number of stops");
   render::ImageSettings s;
   s.width = cmd.count("--width") ? int(parse_count(o.width, "--width", 1, 8192)) : width;
@@ -233,6 +241,10 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--pack", o->pack, "Pack with spheres of this medium (stf build); default: build one")
       ->check(CLI::ExistingFile);
   cmd->add_option("--tolerance", o->tolerance, "Without --pack: TV tolerance of the spheres built")
+      ->capture_default_str();
+  cmd->add_option("--model", o->model,
+                  "Without --pack: the spheres' model, hvmf:auto or lvmf:auto (lifted lobes: strides without retries; "
+                  "docs/render.md, \"Lifted lobes\")")
       ->capture_default_str();
   cmd->add_option("--cache", o->cache,
                   "Cache of the spheres built (default: $STF_CACHE_DIR, else $XDG_CACHE_HOME/stf or ~/.cache/stf)");

@@ -24,6 +24,7 @@ struct RenderOptions {
   std::string width = "64", height = "64", spp, seed = "1", threads = "0";
   std::string method, pack, cache, output, exr, png, json, free_radius = "grid";
   double tolerance = 0.02, exposure = 0;
+  std::string model = "hvmf:auto";  // the spheres' model family (a fitter's --model)
   bool quiet = false, ideal_strides = false;
 };
 
@@ -53,8 +54,8 @@ std::vector<PackEntry> build_pack(const scene::Scene& scene, const RenderOptions
 std::vector<PackEntry> read_pack_option(const std::string& path);
 
 // The settings of the packs renders build: 4e6 paths per sphere on healpix:16, 45 alpha bins,
-// hvmf:auto, certified within `tolerance`.
-scene::Settings render_pack_settings(double tolerance);
+// `model` (hvmf:auto unless --model), certified within `tolerance`.
+scene::Settings render_pack_settings(double tolerance, const std::string& model);
 
 void run_scene_render(const RenderOptions& o, const CLI::App& cmd);
 

@@ -20,10 +20,10 @@ const char* const kChannel[3] = {"R", "G", "B"};
 
 // The pack a scene's strides need: every object's medium in every channel, spheres from the
 // smallest that pays to the largest that fits in the object (the plan shares equal spheres).
-scene::Scene stride_scene(const scene::RenderScene& sc, const render::SceneGeometry& geometry, double tolerance) {
+scene::Scene stride_scene(const scene::RenderScene& sc, const render::SceneGeometry& geometry, const RenderOptions& o) {
   scene::Scene pack;
   pack.path = sc.path;
-  pack.settings = render_pack_settings(tolerance);
+  pack.settings = render_pack_settings(o.tolerance, o.model);
   pack.settings.tau_skip = HUGE_VAL;
   for (std::size_t i = 0; i < sc.objects.size(); ++i) {
     const scene::MediumSpec& m = sc.media[std::size_t(sc.objects[i].medium)];
@@ -103,7 +103,7 @@ void run_scene_render(const RenderOptions& o, const CLI::App& cmd) {
   PackBuild build;
   std::vector<PackEntry> pack;
   if (o.method == "stf") {
-    const scene::Scene needed = stride_scene(sc, *geometry, o.tolerance);
+    const scene::Scene needed = stride_scene(sc, *geometry, o);
     if (!o.pack.empty()) pack = read_pack_option(o.pack);
     else if (!needed.media.empty()) pack = build_pack(needed, o, s.run.threads, build);
   }

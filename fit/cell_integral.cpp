@@ -160,7 +160,11 @@ LobeIntegrator::LobeIntegrator(const QuadratureLevels& levels, const std::vector
       outward_(outward),
       row_of_cell_(counts.size(), -1),
       cut_efolds_(tails == Tails::kKeep ? std::numeric_limits<double>::infinity() : 40) {
-  if (turn && turn->rate != 0) turn_nodes(*turn);
+  if (turn && (turn->rate != 0 || turn->lifted)) turn_nodes(*turn);
+  if (turn && turn->lifted) {
+    const double middle = 0.5 * (turn->a0 + turn->a1);
+    lifted_ = true, middle_normal_ = {std::sin(middle), 0, std::cos(middle)};
+  }
   for (std::size_t c = 0; c < counts.size(); ++c) {
     total_ += counts[c];
     if (counts[c] > 0) {
@@ -220,13 +224,42 @@ void LobeIntegrator::flush(PointBatch& b, bool derivatives, const LobeIntegrals&
   b.n = 0;
 }
 
+template <typename Add>
+void LobeIntegrator::for_each_point(int level, const Vec3& mean, double reach, const PointFactor& factor, PointBatch& batch,
+                                    Add& add) const {
+  const CellQuadrature& q = levels_.at(level);
+  const Vec3* lift = factor.lift;
+  const double cos_reach = reach < kPi ? std::cos(reach) : -2.0;
+  const std::vector<Vec3>& centre = levels_.centres();
+  const auto [first, last] = lift ? std::pair<std::size_t, std::size_t>{0, centre.size()} : levels_.cell_range(mean, reach);
+  for (std::size_t c = first; c < last; ++c) {
+    if (dot(mean, lift ? 2 * dot(centre[c], *lift) * centre[c] - *lift : centre[c]) < cos_reach) continue;
+    for (int j = 0; j < q.per_cell; ++j) {
+      const std::size_t i = c * q.per_cell + j;
+      const Vec3& x = q.point[i];
+      if (!lift) {
+        const double f = factor(i, x);
+        if (f > 0) add(c, x, q.weight[i], f);  // else below the tangent plane of every exit point of the bin
+        continue;
+      }
+      const double up = dot(x, *lift);
+      if (up <= 0) continue;
+      batch.mapped[batch.n] = 2 * up * x - *lift;
+      add(c, batch.mapped[batch.n], 4 * up * q.weight[i], 1.0);
+    }
+  }
+}
+
 void LobeIntegrator::integrate_lobe(const Vec3& mean, double kappa, PointFactor factor,
                                     const LobeIntegrals& out) const {
   const bool derivatives = out.d_theta != nullptr;
-  const int level = levels_.level_for_kappa(kappa, accurate_for_);
-  const CellQuadrature& q = levels_.at(level);
+  // A lifted lobe is integrated at the points mapped about its exit normal: their sub-cells are
+  // up to 4 times as large there (the Jacobian 4 (x . n)) and a cell up to twice as wide.
+  const Vec3* lift = factor.lift;
+  const double grow = lift ? 4 : 1;
+  const int level = levels_.level_for_kappa(grow * kappa, accurate_for_);
   factor.for_level(level);
-  const double max_sub_cell = levels_.max_sub_cell(level);
+  const double max_sub_cell = grow * levels_.max_sub_cell(level);
   // The widening is the quadrature's second-order correction (a sub-cell average of a
   // lobe is the lobe with the sub-cell's variance added): it changes cell masses by about
   // kappa a / 24. Where that is below 1/40 of the Poisson noise of N counts
@@ -238,43 +271,35 @@ void LobeIntegrator::integrate_lobe(const Vec3& mean, double kappa, PointFactor 
   // (HEALPix) it is computed once per lobe, not once per point.
   double widened_for = -1, ke = kappa, norm = norm0, dlog = 0, d_ke = 1;
   double cut_for = -1, min_cosine = -2;  // the e-fold cut below, for the solid angle cut_for
-  // Points beyond cut_efolds_ e-folds are skipped below; a cell whose every point must be (its centre
+  PointBatch batch;
+  auto add = [&](std::size_t c, const Vec3& x, double a, double f) {
+    const double cosine = dot(mean, x);
+    // Beyond 40 e-folds below the peak a point adds nothing a double can hold relative
+    // to the lobe's mass (and exp would take its slow underflow path).
+    if (a != cut_for) cut_for = a, min_cosine = 1 - cut_efolds_ * (1 + kappa * a / 12) / kappa;
+    if (cosine < min_cosine) return;
+    const int k = batch.n++;
+    batch.row[k] = row_of_cell_[c], batch.factor[k] = f, batch.x[k] = &x;
+    if (widen) {
+      if (a != widened_for) {
+        const double stretch = 1 + kappa * a / 12;
+        widened_for = a, ke = kappa / stretch, d_ke = kappa / (stretch * stretch);
+        std::tie(norm, dlog) = widened_norm(ke);
+      }
+      // d v / d log kappa = v (dlog_norm(ke) + cos - 1) (d ke / d kappa) kappa.
+      batch.exponent[k] = ke * (cosine - 1), batch.scale[k] = a * norm;
+      batch.theta[k] = dlog + cosine - 1, batch.theta_scale[k] = d_ke, batch.mean_scale[k] = ke;
+    } else {
+      batch.exponent[k] = kappa * (cosine - 1), batch.scale[k] = a * norm0;
+      batch.theta[k] = dlog0 + kappa * (cosine - 1), batch.theta_scale[k] = 1, batch.mean_scale[k] = kappa;
+    }
+    if (batch.n == PointBatch::kSize) flush(batch, derivatives, out);
+  };
+  // Points beyond cut_efolds_ e-folds are skipped above; a cell whose every point must be (its centre
   // farther from the mean than that angle plus the cell's spread) is skipped whole.
   const double far = 1 - cut_efolds_ * (1 + kappa * max_sub_cell / 12) / kappa;
-  const double reach = far > -1 ? std::acos(far) + levels_.spread(level) : kPi;
-  const double cos_reach = reach < kPi ? std::cos(reach) : -2.0;
-  const std::vector<Vec3>& centre = levels_.centres();
-  const auto [first, last] = levels_.cell_range(mean, reach);
-  PointBatch batch;
-  for (std::size_t c = first; c < last; ++c) {
-    if (dot(mean, centre[c]) < cos_reach) continue;
-    for (int j = 0; j < q.per_cell; ++j) {
-      const std::size_t i = c * q.per_cell + j;
-      const Vec3& x = q.point[i];
-      const double a = q.weight[i], cosine = dot(mean, x), f = factor(i, x);
-      if (f <= 0) continue;  // below the tangent plane of every exit point of the bin
-      // Beyond 40 e-folds below the peak a point adds nothing a double can hold relative
-      // to the lobe's mass (and exp would take its slow underflow path).
-      if (a != cut_for) cut_for = a, min_cosine = 1 - cut_efolds_ * (1 + kappa * a / 12) / kappa;
-      if (cosine < min_cosine) continue;
-      const int k = batch.n++;
-      batch.row[k] = row_of_cell_[c], batch.factor[k] = f, batch.x[k] = &x;
-      if (widen) {
-        if (a != widened_for) {
-          const double stretch = 1 + kappa * a / 12;
-          widened_for = a, ke = kappa / stretch, d_ke = kappa / (stretch * stretch);
-          std::tie(norm, dlog) = widened_norm(ke);
-        }
-        // d v / d log kappa = v (dlog_norm(ke) + cos - 1) (d ke / d kappa) kappa.
-        batch.exponent[k] = ke * (cosine - 1), batch.scale[k] = a * norm;
-        batch.theta[k] = dlog + cosine - 1, batch.theta_scale[k] = d_ke, batch.mean_scale[k] = ke;
-      } else {
-        batch.exponent[k] = kappa * (cosine - 1), batch.scale[k] = a * norm0;
-        batch.theta[k] = dlog0 + kappa * (cosine - 1), batch.theta_scale[k] = 1, batch.mean_scale[k] = kappa;
-      }
-      if (batch.n == PointBatch::kSize) flush(batch, derivatives, out);
-    }
-  }
+  const double reach = far > -1 ? std::acos(far) + (lift ? 2 : 1) * levels_.spread(level) : kPi;
+  for_each_point(level, mean, reach, factor, batch, add);
   flush(batch, derivatives, out);
 }
 
@@ -282,14 +307,14 @@ void LobeIntegrator::integrate_bin_lobe(const Vec3& mean, double kappa, const Lo
                                         CopyScratch& scratch) const {
   const int copies = nodes_needed(kappa);
   if (copies == 1) {
-    integrate_lobe(mean, kappa, PointFactor{outward_}, out);
+    integrate_lobe(mean, kappa, PointFactor{outward_, nullptr, lifted_ ? &middle_normal_ : nullptr}, out);
     return;
   }
   const bool derivatives = out.d_theta != nullptr;
   auto& [m, dt, dm, marked, touched] = scratch;
   for (const Node& node : nodes_[std::size_t(copies - 1)]) {
     double t = 0, tt = 0, tm[3] = {0, 0, 0};
-    const PointFactor factor{nullptr, outward_ ? &node.outward : nullptr};
+    const PointFactor factor{nullptr, outward_ ? &node.outward : nullptr, lifted_ ? &node.normal : nullptr};
     touched.clear();
     integrate_lobe(turn_about_y(mean, node.angle), kappa, factor,
                    {m.data(), derivatives ? dt.data() : nullptr, derivatives ? dm.data() : nullptr, &t, &tt, tm,
@@ -322,12 +347,14 @@ void LobeIntegrator::turn_nodes(const BinTurn& turn) {
     std::vector<Node> nodes;
     for (int j = 0; j < n; ++j) {
       const double u = tilt_quantile(turn.tilt, (j + 0.5) / n);
-      const double angle = turn.rate * (std::acos(std::clamp(c0 + u * (c1 - c0), -1.0, 1.0)) - middle);
-      nodes.push_back({angle, 1.0 / n, OutwardBin(turn.a0 + angle, turn.a1 + angle)});
+      const double alpha = std::acos(std::clamp(c0 + u * (c1 - c0), -1.0, 1.0)), angle = turn.rate * (alpha - middle);
+      nodes.push_back({angle, 1.0 / n, OutwardBin(turn.a0 + angle, turn.a1 + angle), {std::sin(alpha), 0, std::cos(alpha)}});
     }
     nodes_.push_back(std::move(nodes));
   }
-  span_ = std::abs(turn.rate) * (turn.a1 - turn.a0);
+  // A lifted lobe's image moves with the exit normal as well as with the turn.
+  span_ = (std::abs(turn.rate) + (turn.lifted ? 1 : 0)) * (turn.a1 - turn.a0);
+  if (turn.lifted) least_nodes_ = std::min(kMaxTurnNodes, int(std::ceil((turn.a1 - turn.a0) / kLiftedNodeSpacing)));
 }
 
 }  // namespace stf::fit

@@ -127,6 +127,7 @@ BinFits fit_bins(const Escapes& e, const Pass& pass, const QuadratureLevels& lev
   fits.table = &t;
   fits.kind = s.kind, fits.size = pass.size;
   fits.hemispherical = s.kind == ModelKind::kVmf && s.hemispherical;
+  fits.lifted = s.kind == ModelKind::kVmf && s.lifted;
   if (pass.half < 0) fits.turns = e.turns;
   fits.status.assign(t.alpha_bins, BinStatus::kBorrowed);
   fits.lobes.resize(t.alpha_bins);
@@ -176,8 +177,10 @@ BinFits fit_bins(const Escapes& e, const Pass& pass, const QuadratureLevels& lev
 std::vector<double> lobe_cells(const BinFits& fits, const std::vector<VmfLobe>& lobes, const QuadratureLevels& levels,
                                double escapes, const BinTurn& bin, Tails tails) {
   const OutwardFactors outward = fits.hemispherical ? outward_factors(levels, bin.a0, bin.a1) : OutwardFactors{};
+  BinTurn moved = bin;
+  moved.lifted = fits.lifted;
   return lobe_cell_probabilities(lobes, levels, escapes, fits.hemispherical ? &outward : nullptr,
-                                 bin.rate != 0 ? &bin : nullptr, tails);
+                                 moved.rate != 0 || moved.lifted ? &moved : nullptr, tails);
 }
 
 std::vector<double> bin_probabilities(const BinFits& fits, int b, const ShSmoothing& t, const QuadratureLevels& levels,

@@ -16,7 +16,9 @@ TurnedNeighbours turned_neighbours(const BinFits& fits, const std::vector<BinTur
       const double angle = turns[std::size_t(j)].rate * (middle(b) - middle(j));
       std::vector<VmfLobe> lobes = fits.lobes[std::size_t(j)];
       for (VmfLobe& l : lobes) l.mean = turn_about_y(l.mean, angle);
-      const BinTurn moved{0, edges[std::size_t(j)] + angle, edges[std::size_t(j) + 1] + angle, 0};
+      // Lifted lobes are mapped about the normals of bin b's exit points, where it draws them.
+      const BinTurn moved = fits.lifted ? BinTurn{0, edges[std::size_t(b)], edges[std::size_t(b) + 1], 0, true}
+                                        : BinTurn{0, edges[std::size_t(j)] + angle, edges[std::size_t(j) + 1] + angle, 0};
       n.cells[std::size_t(b)][std::size_t(j - b + width)] =
           lobe_cells(fits, lobes, levels, both_halves(t, j), moved, Tails::kCut);
     }

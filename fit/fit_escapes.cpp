@@ -23,6 +23,11 @@ std::vector<double> bin_counts(const Table& t, int half, int b) {
   return counts;
 }
 
+void Escapes::set_lifted() {
+  for (int b = 0; b < table.alpha_bins; ++b)
+    still.push_back({0, table.alpha_edges[std::size_t(b)], table.alpha_edges[std::size_t(b) + 1], 0, true});
+}
+
 double sum(const std::vector<double>& v) { return std::accumulate(v.begin(), v.end(), 0.0); }
 
 double both_halves(const Table& t, int b) { return sum(bin_counts(t, 0, b)) + sum(bin_counts(t, 1, b)); }

@@ -40,6 +40,7 @@ void add_directions(StfModel& m, const FitSettings& s, const SizeChoice& c, cons
     m.lobes = size;
     for (const auto& lobes : fits.lobes) m.vmf.insert(m.vmf.end(), lobes.begin(), lobes.end());
     m.hemispherical = s.hemispherical;
+    m.lifted = s.lifted;
     m.rebuild_lobe_norms();
     return;
   }

@@ -84,12 +84,18 @@ struct Escapes {
   // too chose models farther from the references (docs/studies/2026-12-fit-measurements.md,
   // "Densities that turn with the exit point").
   std::vector<BinTurn> turns;
+  // Lifted lobes (FitSettings::lifted) are mapped about each exit point's normal in every fit:
+  // each bin's BinTurn where its density stands still.
+  std::vector<BinTurn> still;
   std::vector<double> counts(int half, int b) const {
     std::vector<double> c = bin_counts(table, half, b);
     if (!image.empty()) fold_over_mirror(c, image);
     return c;
   }
-  const BinTurn* turn_of(int half, int b) const { return half < 0 && !turns.empty() ? &turns[std::size_t(b)] : nullptr; }
+  const BinTurn* turn_of(int half, int b) const {
+    return half < 0 && !turns.empty() ? &turns[std::size_t(b)] : still.empty() ? nullptr : &still[std::size_t(b)];
+  }
+  void set_lifted();
   // The rates from the headings of the whole table's escapes (alpha_turns), the exit points
   // spread by `tilts` (none: uniform in area).
   void set_turns(const std::vector<double>& tilts) {
@@ -98,7 +104,7 @@ struct Escapes {
     const std::vector<double> rate = alpha_turns(headings, total, table.alpha_edges);
     for (int b = 0; b < table.alpha_bins; ++b)
       turns.push_back({rate[std::size_t(b)], table.alpha_edges[std::size_t(b)], table.alpha_edges[std::size_t(b) + 1],
-                       tilts.empty() ? 0.0 : tilts[std::size_t(b)]});
+                       tilts.empty() ? 0.0 : tilts[std::size_t(b)], !still.empty()});
   }
 };
 
@@ -172,7 +178,7 @@ struct BinFits {
   const Table* table = nullptr;
   ModelKind kind = ModelKind::kVmf;
   int size = 0;  // lobes or band limit
-  bool hemispherical = false;
+  bool hemispherical = false, lifted = false;
   std::vector<BinTurn> turns;  // how the fitted densities turn across their bins (empty: they stand still)
   std::vector<BinStatus> status;
   std::vector<std::vector<VmfLobe>> lobes;  // vmf

@@ -25,6 +25,7 @@ StfModel fit_table(const Table& t, const FitSettings& s, FitReport* report) {
   // (not where the uncollided escapes are unknown: they would be folded off the pole); the
   // diagnostics are against the table as it is.
   Escapes seen{t, s.fold_mirror && t.uncollided_half[0] >= 0 ? mirror_cells(*grid) : std::vector<std::int64_t>{}};
+  if (s.kind == ModelKind::kVmf && s.lifted) seen.set_lifted();
   // Alpha: the marginal, the tilts and (vMF) the turns.
   const AlphaShape alpha = alpha_shape(seen, s);
   const QuadratureLevels levels(*grid);

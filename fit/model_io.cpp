@@ -46,6 +46,7 @@ void put_header(H5::H5File& file, const StfModel& m, const FitReport& r, const P
     for (const auto& [name, field] : kMedium) put_attr(file, name, m.*field);
   for (const auto& [name, field] : kFractions) put_attr(file, name, m.*field);
   put_attr(file, "hemispherical", int(m.hemispherical));
+  if (m.lifted) put_attr(file, "lifted", 1);  // absent: 0, so that other models' files stay as they were
   put_attr(file, "alpha_blend", m.alpha_blend);
   put_attr(file, "fit_time_s", r.fit_time_s);
   put_attr(file, "model_bytes", m.packed_bytes());
@@ -180,6 +181,7 @@ StfModel get_header(H5::H5File& file) {
   for (const auto& [name, field] : kMedium) m.*field = medium ? get_double(file, name) : std::nan("");
   for (const auto& [name, field] : kFractions) m.*field = get_double(file, name, 0, 1);
   m.hemispherical = get_int(file, "hemispherical", 0, 1) != 0;
+  m.lifted = has_attr(file, "lifted") && get_int(file, "lifted", 0, 1) != 0;
   m.alpha_blend = get_int(file, "alpha_blend", 0, StfModel::kMaxBlend);
   return m;
 }

@@ -8,14 +8,16 @@ namespace stf::fit {
 
 FitSettings parse_model_spec(const std::string& spec) {
   const std::string allowed =
-      "--model must be auto, vmf:K or hvmf:K (1..16), vmf:auto, hvmf:auto, sh:L (0..32) or sh:auto, got '" + spec + "'";
+      "--model must be auto, vmf:K, hvmf:K or lvmf:K (1..16), vmf:auto, hvmf:auto, lvmf:auto, sh:L (0..32) or sh:auto, got '" +
+      spec + "'";
   if (spec == "auto") return parse_model_spec("hvmf:auto");
   auto colon = spec.find(':');
   if (colon == std::string::npos) throw std::invalid_argument(allowed);
   std::string kind = spec.substr(0, colon), size = spec.substr(colon + 1);
   FitSettings s;
   s.hemispherical = kind == "hvmf";
-  if (kind == "vmf" || kind == "hvmf") s.kind = ModelKind::kVmf;
+  s.lifted = kind == "lvmf";
+  if (kind == "vmf" || kind == "hvmf" || kind == "lvmf") s.kind = ModelKind::kVmf;
   else if (kind == "sh") s.kind = ModelKind::kSh;
   else throw std::invalid_argument(allowed);
   if (size == "auto") {

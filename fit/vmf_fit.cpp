@@ -211,10 +211,20 @@ std::vector<VmfLobe> grow_lobes(std::vector<VmfLobe> lobes, int K) {
 
 VmfFitResult fit_vmf(const std::vector<double>& counts, const QuadratureLevels& levels, int K,
                      const VmfFitOptions& options) {
-  if (!options.outward) return fit_vmf_from(counts, levels, initial_lobes(counts, levels.centres(), K), options);
-  // Hemispherical lobes have more poor local optima than plain ones: K lobes grow from a fit of
-  // half as many (the heaviest split), down to two from k-means.
+  const bool lifted = options.turn && options.turn->lifted;
+  if (!options.outward && !lifted) return fit_vmf_from(counts, levels, initial_lobes(counts, levels.centres(), K), options);
+  // Hemispherical and lifted lobes have more poor local optima than plain ones: K lobes grow from
+  // a fit of half as many (the heaviest split), down to two from k-means.
   if (K > 2) return fit_vmf_from(counts, levels, grow_lobes(fit_vmf(counts, levels, (K + 1) / 2, options).lobes, K), options);
+  if (lifted) {
+    // Lifted lobes start where they put the counts: their means at the cells' centres mapped
+    // about the bin's middle normal (LobeIntegrator::PointFactor::lift).
+    const double middle = 0.5 * (options.turn->a0 + options.turn->a1);
+    const Vec3 n{std::sin(middle), 0, std::cos(middle)};
+    std::vector<Vec3> mapped;
+    for (const Vec3& c : levels.centres()) mapped.push_back(2 * dot(c, n) * c - n);
+    return fit_vmf_from(counts, levels, initial_lobes(counts, mapped, K), options);
+  }
   // They are multiplied by the outward factor, so they start from the counts with that factor
   // divided out (floored, so that grazing cells do not dominate): the shape the lobes
   // themselves must take.

@@ -84,10 +84,17 @@ int alpha_group_size(const std::vector<double>& edges, const Table& reference) {
   return f;
 }
 
-std::vector<double> smooth_cell_probabilities(const StfModel& m, int b, const QuadratureLevels& levels, double turn) {
+std::vector<double> smooth_cell_probabilities(const StfModel& m, int b, const QuadratureLevels& levels, double turn,
+                                              double exit_a0, double exit_a1) {
   if (m.kind == ModelKind::kVmf) {
     std::vector<VmfLobe> lobes(m.lobes_of(b).begin(), m.lobes_of(b).end());
     for (VmfLobe& l : lobes) l.mean = turn_about_y(l.mean, turn);
+    if (m.lifted) {  // mapped about each exit point's own normal, over the exit angles asked for
+      const bool own = exit_a0 == 0 && exit_a1 == 0;
+      const fit::BinTurn exits{0, own ? m.alpha_edges[std::size_t(b)] : exit_a0, own ? m.alpha_edges[std::size_t(b) + 1] : exit_a1,
+                               0, true};
+      return lobe_cell_probabilities(lobes, levels, 1e8, nullptr, &exits);
+    }
     // The quadrature levels the fitter used for lobes this narrow; hemispherical lobes with the
     // outward factor's means over sub-cells, so that cells the tangent planes cut keep their share.
     // The bin's factor turned by `turn` is the factor of the bin's edges moved by it.
@@ -106,13 +113,14 @@ BinnedModel::BinnedModel(const StfModel& model, const Table& reference, const Di
   if (model.once_fraction > 0) once_ = bin_once_scattered(model.tau, model.g, reference.alpha_edges, grid);
 }
 
-const std::vector<double>& SmoothCellCache::operator()(int j, double turn) {
+const std::vector<double>& SmoothCellCache::operator()(int j, double turn, double exit_a0, double exit_a1) {
+  if (!model_.lifted) exit_a0 = exit_a1 = 0;  // the same cells at every exit angle
   for (const Kept& k : kept_)
-    if (k.bin == j && k.turn == turn) return k.cells;
+    if (k.bin == j && k.turn == turn && k.exit_a0 == exit_a0) return k.cells;
   // A reference bin needs its model bin and the 2 alpha_blend bins around it (turning models
   // need each at several turns, and keep none for long).
   if (kept_.size() >= std::size_t(2 * model_.alpha_blend + 1)) kept_.erase(kept_.begin());
-  kept_.push_back({j, turn, smooth_cell_probabilities(model_, j, levels_, turn)});
+  kept_.push_back({j, turn, exit_a0, smooth_cell_probabilities(model_, j, levels_, turn, exit_a0, exit_a1)});
   return kept_.back().cells;
 }
 
@@ -151,11 +159,12 @@ std::pair<double, std::vector<double>> BinnedModel::bin(int b, const SmoothCells
   const double c0 = std::cos(model_.alpha_edges[std::size_t(j)]), c1 = std::cos(model_.alpha_edges[std::size_t(j) + 1]);
   for (int s = 0; s < slices; ++s) {
     const double lo = below + (above - below) * s / slices, hi = below + (above - below) * (s + 1) / slices;
-    const double alpha = std::acos(std::clamp(c0 + 0.5 * (lo + hi) * (c1 - c0), -1.0, 1.0));
+    auto angle = [&](double u) { return std::acos(std::clamp(c0 + u * (c1 - c0), -1.0, 1.0)); };
+    const double alpha = angle(0.5 * (lo + hi));
     for (const auto& [bin, share] : blend_shares(model_, j, lo, hi)) {
       smooth_mass += smooth * share;
       if (share <= 0) continue;
-      const std::vector<double>& cells = smooth_cells(bin, model_.turn_angle(bin, alpha));
+      const std::vector<double>& cells = smooth_cells(bin, model_.turn_angle(bin, alpha), angle(lo), angle(hi));
       for (std::size_t c = 0; c < p.size(); ++c) p[c] += smooth * share * cells[c];
     }
   }

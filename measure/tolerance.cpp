@@ -134,7 +134,7 @@ std::vector<std::pair<double, std::vector<double>>> binned_in_parallel(const Stf
                                                                      const FitSettings& settings) {
   const int bins = model.bins(), f = binned.group();
   std::vector<std::pair<double, std::vector<double>>> out(std::size_t(bins) * f);
-  if (!model.alpha_turn.empty()) {
+  if (!model.alpha_turn.empty() || model.lifted) {  // cells that change with the exit angle
     for_each_bin(bins, settings, "certificate", [&](int j) {
       SmoothCellCache cache(model, levels);
       for (int a = j * f; a < (j + 1) * f; ++a) out[std::size_t(a)] = binned.bin(a, std::ref(cache));
@@ -145,7 +145,9 @@ std::vector<std::pair<double, std::vector<double>>> binned_in_parallel(const Stf
   std::vector<std::vector<double>> cell_probability(bins);
   for_each_bin(bins, settings, "certificate", [&](int j) { cell_probability[j] = smooth_cell_probabilities(model, j, levels); });
   if (cancelled(settings)) return {};
-  const auto cells_of = [&](int j, double) -> const std::vector<double>& { return cell_probability[std::size_t(j)]; };
+  const auto cells_of = [&](int j, double, double, double) -> const std::vector<double>& {
+    return cell_probability[std::size_t(j)];
+  };
   for (std::size_t a = 0; a < out.size(); ++a) out[a] = binned.bin(int(a), cells_of);
   return out;
 }

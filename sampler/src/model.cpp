@@ -33,7 +33,21 @@ double StfModel::outward_factor(int bin, const Vec3& w) const {
   return hemispherical ? OutwardBin(alpha_edges[std::size_t(bin)], alpha_edges[std::size_t(bin) + 1])(w) : 1.0;
 }
 
+double StfModel::direction_pdf(int bin, const Vec3& w, const Vec3& normal) const {
+  if (kind != ModelKind::kVmf || !lifted) return direction_pdf(bin, w);
+  const double up = dot(w, normal);
+  if (!(up > 0)) return 0;
+  const Vec3 v = 2 * up * w - normal;  // the normal mirrored about w
+  double p = 0;
+  for (const VmfLobe& l : lobes_of(bin)) p += l.weight * vmf_pdf(l.kappa, dot(l.mean, v));
+  return 4 * up * p;
+}
+
 double StfModel::direction_pdf(int bin, const Vec3& w) const {
+  if (kind == ModelKind::kVmf && lifted) {
+    const double middle = 0.5 * (alpha_edges[std::size_t(bin)] + alpha_edges[std::size_t(bin) + 1]);
+    return direction_pdf(bin, w, {std::sin(middle), 0, std::cos(middle)});
+  }
   if (kind == ModelKind::kVmf) {
     double p = 0;
     const BinSlice<const double> norm = hemispherical ? bin_slice(lobe_norm, bin, lobes) : BinSlice<const double>();
@@ -242,6 +256,7 @@ std::string model_error(const StfModel& m) {
   if (!finite_in(m.once_fraction, 0, 1)) return "once-scattered fraction must be in [0, 1]";
   if (!m.alpha_tilt.empty() && int(m.alpha_tilt.size()) != bins) return "alpha tilts of the wrong count";
   if (m.alpha_blend < 0 || m.alpha_blend > StfModel::kMaxBlend) return "alpha blend out of range [0, 3]";
+  if (m.lifted && (m.hemispherical || m.kind != ModelKind::kVmf)) return "lifted lobes are vMF lobes, and not hemispherical ones";
   if (!m.alpha_blend_width.empty() && int(m.alpha_blend_width.size()) != bins) return "alpha blend widths of the wrong count";
   for (int h : m.alpha_blend_width)
     if (h < 0 || h > m.alpha_blend) return "alpha blend width (/alpha/blend) out of range [0, alpha_blend]";

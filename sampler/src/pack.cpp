@@ -26,9 +26,11 @@ std::uint64_t fnv1a(const std::uint8_t* p, std::size_t n) {
 std::size_t pad4(std::size_t n) { return (n + 3) & ~std::size_t(3); }
 
 // Record flags: bit 0 hemispherical lobes, bits 1-2 the alpha blend (the widest where bins
-// differ), bit 3 a turn per bin follows the tilts, bit 4 a blend width per bin follows those.
+// differ), bit 3 a turn per bin follows the tilts, bit 4 a blend width per bin follows those,
+// bit 5 lifted lobes.
 constexpr std::uint32_t kTurnsFlag = 8;
 constexpr std::uint32_t kBlendWidthsFlag = 16;
+constexpr std::uint32_t kLiftedFlag = 32;
 
 // Float32 values per lobe: weight, kappa and the mean's polar and azimuthal angles (float32
 // angles place a mean to ~1e-7 rad, below the width of any lobe a table resolves).
@@ -115,7 +117,7 @@ std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries) {
     payload.put(std::int32_t(m.alpha_degree));
     payload.put(std::uint32_t((m.hemispherical ? 1 : 0) | (std::uint32_t(m.alpha_blend) << 1) |
                               (m.alpha_turn.empty() ? 0 : kTurnsFlag) |
-                              (m.alpha_blend_width.empty() ? 0 : kBlendWidthsFlag)));  // flags
+                              (m.alpha_blend_width.empty() ? 0 : kBlendWidthsFlag) | (m.lifted ? kLiftedFlag : 0)));  // flags
     for (double v : {m.tau, m.albedo, m.g, m.escape_probability, m.absorbed_fraction, m.truncated_fraction,
                      m.uncollided_fraction, m.once_fraction})
       payload.put(v);
@@ -198,7 +200,7 @@ bool read_header(Reader& r, PackEntry& e, RecordHeader& h, std::string& error) {
   if (h.kind > 1) return fail(error, "unknown model kind " + std::to_string(h.kind));
   if (std::string why = model_size_error(h.kind == 1, h.bins, h.size, h.nz, h.degree); !why.empty())
     return fail(error, why);
-  if (h.flags > (kBlendWidthsFlag | kTurnsFlag | 7u)) return fail(error, "unknown model flags");
+  if (h.flags > (kLiftedFlag | kBlendWidthsFlag | kTurnsFlag | 7u)) return fail(error, "unknown model flags");
   const std::size_t per_bin = h.turns() ? 12 : 8;  // probability and tilt, and the turn
   if (std::int64_t(record) != std::int64_t(4 + 4 + pad4(name_bytes) + 6 * 4 + 8 * 8 + per_bin * std::size_t(h.bins) +
                                             pad4(h.bins) + (h.widths() ? pad4(h.bins) : 0) +
@@ -322,6 +324,7 @@ bool read_record(Reader& r, PackEntry& e, std::string& error) {
   StfModel& m = e.model;
   m.kind = h.kind == 0 ? ModelKind::kVmf : ModelKind::kSh;
   m.hemispherical = h.kind == 0 && (h.flags & 1);
+  m.lifted = h.kind == 0 && (h.flags & kLiftedFlag);
   m.alpha_blend = int((h.flags >> 1) & 3u);
   if (!read_medium(r, m, error) || !read_alpha(r, h, m, error)) return false;
   if (!(h.kind == 0 ? read_lobes(r, h, m, error) : read_sh(r, h, m, error))) return false;

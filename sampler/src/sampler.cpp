@@ -48,8 +48,30 @@ int ShellSampler::alpha_bin_of(double cos_alpha) const {
   return int(it - cos_edges_.begin()) - 1;
 }
 
+Vec3 ShellSampler::middle_normal(int bin) const {
+  const double middle = 0.5 * (model_.alpha_edges[std::size_t(bin)] + model_.alpha_edges[std::size_t(bin) + 1]);
+  return {std::sin(middle), 0, std::cos(middle)};
+}
+
+Vec3 ShellSampler::lift_normal(int j, double alpha, double& turn) const {
+  turn = model_.alpha_turn.empty() ? 0.0 : model_.turn_angle(j, alpha);
+  return {std::sin(alpha - turn), 0, std::cos(alpha - turn)};
+}
+
 double ShellSampler::direction_pdf(int bin, const Vec3& w) const {
+  return direction_pdf(bin, w, model_.lifted ? middle_normal(bin) : Vec3{0, 0, 1});
+}
+
+double ShellSampler::direction_pdf(int bin, const Vec3& w, const Vec3& normal) const {
   if (model_.kind == ModelKind::kSh) return model_.direction_pdf(bin, w);
+  if (model_.lifted) {
+    const double up = dot(w, normal);
+    if (!(up > 0)) return 0;
+    const Vec3 v = 2 * up * w - normal;  // the normal mirrored about w
+    double p = 0;
+    for (const Lobe& l : bin_slice(lobes_, bin, model_.lobes)) p += l.weight * lobe_pdf(l, v);
+    return 4 * up * p;
+  }
   double p = 0;
   for (const Lobe& l : bin_slice(lobes_, bin, model_.lobes)) p += l.weight * lobe_pdf(l, w);
   return model_.hemispherical ? p * tables_->outward[std::size_t(bin)](w) : p;
@@ -58,6 +80,10 @@ double ShellSampler::direction_pdf(int bin, const Vec3& w) const {
 int ShellSampler::sample_alpha_bin(double u, double& remainder) const { return alpha_.sample(u, remainder); }
 
 Vec3 ShellSampler::sample_direction(int bin, double u2, double u3) const {
+  return sample_direction(bin, u2, u3, model_.lifted ? middle_normal(bin) : Vec3{0, 0, 1});
+}
+
+Vec3 ShellSampler::sample_direction(int bin, double u2, double u3, const Vec3& normal) const {
   if (model_.kind == ModelKind::kVmf) {
     // Pick a lobe by weight and reuse the rest of u2 for the lobe's own polar angle (a lobe of
     // zero weight, picked by rounding, is uniform).
@@ -67,6 +93,7 @@ Vec3 ShellSampler::sample_direction(int bin, double u2, double u3) const {
     const double below = k > 0 ? sums[std::size_t(k) - 1] : 0.0;
     double remainder = l.weight > 0 ? std::clamp((u2 - below) / l.weight, 0.0, std::nextafter(1.0, 0.0)) : 0.0;
     Vec3 w = l.direction(remainder, u3);
+    if (model_.lifted) return lift_direction(w, normal);
     if (!model_.hemispherical) return w;
     // The lobe times the bin's outward factor (<= 1): a lobe draw kept with that probability;
     // the acceptance and any retries come from a stream seeded from (u2, u3).
@@ -118,8 +145,11 @@ ExitSample ShellSampler::draw(double u0, double u1, double u2, double u3, int& b
   double below = 0;
   while (k + 1 < n && u2 >= below + weights[k]) below += weights[k++];
   const double rest = n > 1 ? std::clamp((u2 - below) / weights[k], 0.0, std::nextafter(1.0, 0.0)) : u2;
-  local = sample_direction(blend_bins[k], rest, u3);
-  if (!model_.alpha_turn.empty()) local = turn_about_y(local, model_.turn_angle(blend_bins[k], std::atan2(sin_alpha, cos_alpha)));
+  double turn = 0;
+  Vec3 normal{0, 0, 1};
+  if (model_.lifted || !model_.alpha_turn.empty()) normal = lift_normal(blend_bins[k], std::atan2(sin_alpha, cos_alpha), turn);
+  local = sample_direction(blend_bins[k], rest, u3, normal);
+  if (!model_.alpha_turn.empty()) local = turn_about_y(local, turn);
   s.point = {sin_alpha * cb, sin_alpha * sb, cos_alpha};
   s.direction = rotate_z(local, cb, sb);
   return s;
@@ -149,14 +179,18 @@ double ShellSampler::smooth_pdf(int bin, double cos_alpha, const Vec3& local) co
   double weights[2 * StfModel::kMaxBlend + 1];
   const int n = model_.blend_weights(bin, u, blend_bins, weights);
   double direction = 0;
-  if (model_.alpha_turn.empty()) {
+  if (model_.alpha_turn.empty() && !model_.lifted) {
     for (int k = 0; k < n; ++k) direction += weights[k] * direction_pdf(blend_bins[k], local);
     return point * direction;
   }
-  // Each blended bin's density turned to this exit angle (StfModel::alpha_turn).
+  // Each blended bin's density turned to this exit angle (StfModel::alpha_turn), its lifted lobes
+  // about the exit normal turned back with it.
   const double alpha = std::atan2(std::sqrt(std::max(0.0, 1 - cos_alpha * cos_alpha)), cos_alpha);
-  for (int k = 0; k < n; ++k)
-    direction += weights[k] * direction_pdf(blend_bins[k], turn_about_y(local, -model_.turn_angle(blend_bins[k], alpha)));
+  for (int k = 0; k < n; ++k) {
+    double turn;
+    const Vec3 normal = lift_normal(blend_bins[k], alpha, turn);
+    direction += weights[k] * direction_pdf(blend_bins[k], model_.alpha_turn.empty() ? local : turn_about_y(local, -turn), normal);
+  }
   return point * direction;
 }
 

@@ -65,7 +65,7 @@ bool StrideForm::fit_angle(Bin& bin, double a0, double a1) {
 
 StrideForm::StrideForm(const StfModel& model, std::shared_ptr<const DrawTables> tables)
     : bins_(model.bins()), lobes_per_bin_(model.lobes), sh_(model.kind == ModelKind::kSh),
-      turns_(!model.alpha_turn.empty()), escape_probability_(model.escape_probability),
+      turns_(!model.alpha_turn.empty()), lifted_(model.lifted), escape_probability_(model.escape_probability),
       outcomes_(outcome_weights(model)), sh_nz_(model.sh_nz),
       tables_(tables ? std::move(tables) : make_draw_tables(model)) {
   const StfModel& m = model;

@@ -28,16 +28,27 @@ class Render : public Cli {
   // ctest builds the pack afresh once for all these tests (the RenderPack fixture); run by hand,
   // the first test builds it where it is missing or older than the binary or the scene.
   static void SetUpTestSuite() {
-    if (fs::exists(pack()) && fs::last_write_time(pack()) >= fs::last_write_time(STF_BINARY) &&
-        fs::last_write_time(pack()) >= fs::last_write_time(STF_RENDER_SCENE))
-      return;
+    const std::string scenes[2] = {STF_RENDER_SCENE, fs::path(STF_RENDER_SCENE).replace_filename("render_scene_lifted.toml")};
+    const fs::path packs[2] = {pack(), lifted_pack()};
+    bool fresh = true;
+    for (int i = 0; i < 2; ++i)
+      fresh = fresh && fs::exists(packs[i]) && fs::last_write_time(packs[i]) >= fs::last_write_time(STF_BINARY) &&
+              fs::last_write_time(packs[i]) >= fs::last_write_time(scenes[i]);
+    if (fresh) return;
     fs::remove_all(pack().parent_path());
     fs::create_directories(pack().parent_path());
-    const std::string cmd = std::string(STF_BINARY) + " build " + STF_RENDER_SCENE + " --quiet --cache " +
-                            (pack().parent_path() / "cache").string() + " -o " + pack().string();
-    ASSERT_EQ(std::system(cmd.c_str()), 0);
+    for (int i = 0; i < 2; ++i) {
+      const std::string cmd = std::string(STF_BINARY) + " build " + scenes[i] + " --quiet --cache " +
+                              (pack().parent_path() / "cache").string() + " -o " + packs[i].string();
+      ASSERT_EQ(std::system(cmd.c_str()), 0);
+    }
   }
   static fs::path pack() { return STF_RENDER_PACK; }
+  static fs::path lifted_pack() { return STF_RENDER_PACK_LIFTED; }
+
+  // The strided image through `strides` against brute force's (b.h5, made by the caller): 4 x 4
+  // blocks within 4.5 sigma, the whole image within 1% and 4.5 sigma.
+  void expect_agreement(const fs::path& strides, const std::string& common);
 
   void expect_one_line(const Result& r, const std::string& names, const std::string& what) {
     EXPECT_EQ(r.status, 2) << what << "\n" << r.err;
@@ -47,14 +58,22 @@ class Render : public Cli {
 
 };
 
-// The targets of the strided method: no 4 x 4 block of pixels beyond 4.5 sigma on the two
-// images' combined variance, and the whole image's mean within 1% (and within its noise).
+// The targets of the strided method, through plain vMF lobes and through lifted ones (lvmf, drawn
+// without retries): no 4 x 4 block of pixels beyond 4.5 sigma on the two images' combined
+// variance, and the whole image's mean within 1% (and within its noise).
 TEST_F(Render, StridedImageAgreesWithBruteForceWithinNoise) {
   // Different seeds: the same seed would jitter both images alike, correlating them.
   const std::string common = kThick + "--spp 4096 --quiet ";
   Result brute = stf("render " + common + "--seed 5 --method brute -o " + out("b.h5"));
   ASSERT_EQ(brute.status, 0) << brute.err;
-  Result strided = stf("render " + common + "--seed 6 --method stf --pack " + pack().string() + " -o " + out("s.h5") +
+  for (const fs::path& strides : {pack(), lifted_pack()}) {
+    SCOPED_TRACE(strides.string());
+    expect_agreement(strides, common);
+  }
+}
+
+void Render::expect_agreement(const fs::path& strides, const std::string& common) {
+  Result strided = stf("render " + common + "--seed 6 --method stf --pack " + strides.string() + " -o " + out("s.h5") +
                        " --json " + out("s.json"));
   ASSERT_EQ(strided.status, 0) << strided.err;
   std::ifstream json(out("s.json"));
@@ -196,6 +215,9 @@ TEST_F(Render, BadInputIsOneLineAndNoFile) {
       {ok + "--method brute --exposure nan", "--exposure"},
       {ok + "--method brute --exposure 99", "--exposure"},
       {ok + "--method brute --exr /nonexistent-folder/i.exr", "--exr"},
+      {ok + "--method stf --model lobes:3", "--model"},
+      {ok + "--method brute --model lvmf:auto", "--model"},
+      {ok + "--method stf --pack " + pack().string() + " --model lvmf:auto", "--model"},
   };
   for (const auto& [args, names] : cases) {
     expect_one_line(stf(args + " -o " + out("i.h5") + " --png " + out("i.png")), names, args);

@@ -564,7 +564,7 @@ TEST(FitTable, DeterministicForAnyThreadCount) {
 TEST(FitTable, StoreLoadRoundTripIsExact) {
   Table t = make_table({4, 0.5, 0.6, 1}, 30000);
   std::string path = ::testing::TempDir() + "/model_" + std::to_string(::getpid()) + ".h5";
-  for (const char* spec : {"vmf:2", "sh:6", "sh:6 across alpha", "hvmf:auto"}) {
+  for (const char* spec : {"vmf:2", "sh:6", "sh:6 across alpha", "hvmf:auto", "lvmf:auto"}) {
     FitReport report;
     const std::string name = spec;
     FitSettings settings = parse_model_spec(name.substr(0, name.find(' ')));
@@ -592,6 +592,8 @@ TEST(FitTable, StoreLoadRoundTripIsExact) {
     EXPECT_EQ(r.alpha_turn, m.alpha_turn);
     EXPECT_EQ(r.alpha_turn.empty(), m.kind == ModelKind::kSh);  // vMF lobes turn with the exit point
     EXPECT_EQ(r.hemispherical, m.hemispherical);
+    EXPECT_EQ(r.lifted, m.lifted);
+    EXPECT_EQ(r.lifted, name == "lvmf:auto");
     EXPECT_EQ(r.packed_bytes(), m.packed_bytes());
     ASSERT_EQ(r.vmf.size(), m.vmf.size());
     for (std::size_t i = 0; i < m.vmf.size(); ++i) {

@@ -107,6 +107,13 @@ TEST_F(LobeDeviance, TurningBinMatchesFiniteDifferences) {
   EXPECT_LT(jacobian_error(PoissonDeviance(LobeIntegrator(levels, counts, &outward, &turn), 2, 1e-6, 1e8), false), 1e-6);
 }
 
+TEST_F(LobeDeviance, LiftedLobesMatchFiniteDifferences) {
+  for (const BinTurn& lifted : {BinTurn{0, 0.3, 0.6, 0.2, true}, BinTurn{4, 0.3, 0.6, 0.2, true}}) {
+    EXPECT_LT(jacobian_error(PoissonDeviance(LobeIntegrator(levels, counts, nullptr, &lifted), 2, 1e-6, 1e8), false), 1e-6)
+        << "rate " << lifted.rate;
+  }
+}
+
 TEST_F(LobeDeviance, PooledNeighbourMatchesFiniteDifferences) {
   auto inner = std::make_unique<PoissonDeviance>(LobeIntegrator(levels, counts, &outward, &turn), 2, 1e-6, 1e8);
   EXPECT_LT(jacobian_error(TurnedDeviance(std::move(inner), 2, 0.1, 0.5), false), 1e-6);

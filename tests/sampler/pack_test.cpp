@@ -58,7 +58,8 @@ std::string read_error(const StfModel& m) {
 }
 
 TEST(Pack, RoundTripKeepsModelsToFloatPrecision) {
-  std::vector<PackEntry> in = {{"milk", test::make_vmf_model()}, {"", test::make_sh_model()}, {"h", test::make_vmf_model()}};
+  std::vector<PackEntry> in = {{"milk", test::make_vmf_model()}, {"", test::make_sh_model()}, {"h", test::make_vmf_model()},
+                               {"l", test::lifted(test::make_vmf_model())}};
   in[2].model.hemispherical = true;
   in[2].model.rebuild_lobe_norms();
   in[0].model.once_fraction = 0.25;
@@ -69,10 +70,12 @@ TEST(Pack, RoundTripKeepsModelsToFloatPrecision) {
   in[2].model.alpha_blend = 2;
   in[2].model.alpha_blend_width = {0, 2, 1, 2, 2, 0};
   std::vector<PackEntry> out = round_trip(in);
-  ASSERT_EQ(out.size(), 3u);
+  ASSERT_EQ(out.size(), 4u);
   EXPECT_EQ(out[0].name, "milk");
   EXPECT_TRUE(out[2].model.hemispherical);
   EXPECT_FALSE(out[0].model.hemispherical);
+  EXPECT_TRUE(out[3].model.lifted);
+  EXPECT_FALSE(out[2].model.lifted);
   EXPECT_EQ(out[0].model.alpha_blend, 3);
   EXPECT_EQ(out[1].model.alpha_blend, 0);
   EXPECT_TRUE(out[0].model.alpha_blend_width.empty());  // one width for every bin packs none
@@ -85,8 +88,8 @@ TEST(Pack, RoundTripKeepsModelsToFloatPrecision) {
   for (int b = 0; b < 6; ++b) EXPECT_NEAR(out[2].model.alpha_turn[b], in[2].model.alpha_turn[b], 1e-6);
   EXPECT_EQ(in[2].model.packed_bytes(), test::make_vmf_model().packed_bytes() + 6 * 4 + 8);  // turns, widths
   // One header; each record as packed_bytes() reports it, plus its name padded to 4 bytes.
-  EXPECT_EQ(write_pack(in).size(),
-            std::size_t(in[0].model.packed_bytes() + in[1].model.packed_bytes() + in[2].model.packed_bytes() - 64 + 4 + 4));
+  EXPECT_EQ(write_pack(in).size(), std::size_t(in[0].model.packed_bytes() + in[1].model.packed_bytes() + in[2].model.packed_bytes() +
+                                               in[3].model.packed_bytes() - 3 * 32 + 4 + 4 + 4));
   std::uint64_t s = 61;
   for (std::size_t e = 0; e < in.size(); ++e) {
     EXPECT_EQ(out[e].model.tau, in[e].model.tau);
@@ -111,7 +114,7 @@ TEST(Pack, SamplerDensityEqualsTheFittersDensity) {
   settings.grid = "healpix:4";
   settings.alpha_bins = 9;
   Table t = *precompute({4, 0.5, 0.5, 1}, settings);
-  for (const char* spec : {"vmf:3", "hvmf:3", "sh:6"}) {
+  for (const char* spec : {"vmf:3", "hvmf:3", "lvmf:3", "sh:6"}) {
     StfModel fitted = fit::fit_table(t, fit::parse_model_spec(spec));
     ShellSampler from_pack(round_trip({{"", fitted}}).front().model), direct(fitted);
     std::uint64_t s = 62;

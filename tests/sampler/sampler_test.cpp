@@ -19,7 +19,7 @@ namespace {
 
 using test::integrate;
 using test::Uniforms;
-using test::with_uncollided, test::tilted, test::blended, test::blended_by_bin, test::turned, test::hemispherical;
+using test::with_uncollided, test::tilted, test::blended, test::blended_by_bin, test::turned, test::hemispherical, test::lifted;
 
 // Directions binned around `axis`: t = 1 - cos(theta) in n_t bins on [0, t_max] (quadratic
 // spacing: finer near the axis) plus one tail bin, times n_phi azimuth bins.
@@ -178,7 +178,8 @@ TEST(Sampler, PdfOfASampleIsTheReturnedPdf) {
                                hemispherical(with_uncollided(test::make_vmf_model())), tilted(test::make_vmf_model()),
                                blended(tilted(test::make_vmf_model())), blended(tilted(test::make_vmf_model()), 3),
                                turned(hemispherical(test::make_vmf_model())), blended(turned(tilted(test::make_vmf_model())), 2),
-                               turned(test::make_sh_model())}) {
+                               turned(test::make_sh_model()), lifted(with_uncollided(test::make_vmf_model())),
+                               blended(turned(tilted(lifted(test::make_vmf_model()))), 2)}) {
     ShellSampler s(model);
     Uniforms u{54};
     for (int i = 0; i < 20000; ++i) {
@@ -198,7 +199,8 @@ TEST(Sampler, PdfOfASampleIsTheReturnedPdf) {
 // SH model's equal-area cells exactly and resolves the kappa = 80 lobe to ~1e-4.
 TEST(Sampler, PdfIntegratesToOne) {
   for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model()),
-                               hemispherical(with_uncollided(test::make_vmf_model()))}) {
+                               hemispherical(with_uncollided(test::make_vmf_model())),
+                               lifted(with_uncollided(test::make_vmf_model()))}) {
     ShellSampler s(model);
     const int nb = 3, nz = 384, nphi = 768;
     double total = 0;
@@ -300,7 +302,8 @@ TEST(Sampler, WorldSpaceSamplesAreRotatedLocalOnes) {
 // file's do not.)
 TEST(Sampler, JumpIsTheStrideFormsDraw) {
   for (const StfModel& model : {test::make_vmf_model(), test::make_sh_model(), with_uncollided(test::make_vmf_model()),
-                               hemispherical(with_uncollided(test::make_vmf_model()))}) {
+                               hemispherical(with_uncollided(test::make_vmf_model())),
+                               lifted(with_uncollided(test::make_vmf_model()))}) {
     ShellSampler s(model);
     Uniforms u{57};
     for (int i = 0; i < 20000; ++i) {

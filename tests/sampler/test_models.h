@@ -92,4 +92,10 @@ inline StfModel hemispherical(StfModel m) {
   return m;
 }
 
+// The same lobes lifted to each exit point's outward hemisphere (StfModel::lifted).
+inline StfModel lifted(StfModel m) {
+  m.lifted = true;
+  return m;
+}
+
 }  // namespace stf::test

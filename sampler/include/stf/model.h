@@ -102,8 +102,15 @@ struct StfModel {
   // outward cosine (stf/hemisphere.h) and renormalised by lobe_norm, its integral, which
   // rebuild_lobe_norms() derives.
   bool hemispherical = false;
-  // The family's name in model specs: "vmf", "hvmf" or "sh".
-  const char* family() const { return kind == ModelKind::kSh ? "sh" : hemispherical ? "hvmf" : "vmf"; }
+  // Lifted lobes (attribute `lifted`): at exit angle alpha a direction w of bin b is the
+  // half-vector (v + n) / |v + n| of the exit normal n = (sin alpha, 0, cos alpha) (turned back
+  // by the bin's turn, as w is) and a direction v of the lobe over the whole sphere; v is n
+  // mirrored about w. The density is 4 (w . n) vMF(2 (w . n) w - n) above n's tangent plane and 0
+  // below: it falls to zero at grazing as exits do, is normalised by construction (Lambertian at
+  // kappa 0), and a draw is one vMF draw, an add and a normalisation, with no retries.
+  bool lifted = false;
+  // The family's name in model specs: "vmf", "hvmf", "lvmf" or "sh".
+  const char* family() const { return kind == ModelKind::kSh ? "sh" : hemispherical ? "hvmf" : lifted ? "lvmf" : "vmf"; }
   std::vector<double> lobe_norm;  // [bins * lobes]
   BinSlice<const VmfLobe> lobes_of(int b) const { return bin_slice(vmf, b, lobes); }
 
@@ -141,8 +148,11 @@ struct StfModel {
   double uncollided_share_of_bin0() const {
     return alpha_probability.empty() || alpha_probability[0] <= 0 ? 0 : std::min(1.0, uncollided_fraction / alpha_probability[0]);
   }
-  // Density p(w' | alpha bin) per steradian: the vMF mixture, or the tabulated clamped SH.
+  // Density p(w' | alpha bin) per steradian: the vMF mixture, or the tabulated clamped SH;
+  // lifted lobes about the bin's middle normal.
   double direction_pdf(int bin, const Vec3& w) const;
+  // The same at an exit point of normal `normal` (which lifted lobes are mapped about).
+  double direction_pdf(int bin, const Vec3& w, const Vec3& normal) const;
   void rebuild_sh_tables();
   void rebuild_lobe_norms();
   // A bin's mean outward cosine at w (1 for a model that is not hemispherical).

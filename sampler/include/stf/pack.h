@@ -8,7 +8,7 @@
 //     u32 kind (0 vmf, 1 sh), u32 bins, u32 lobes or band limit, u32 SH table nz,
 //     i32 alpha degree (-1: none), u32 flags (bit 0: hemispherical vMF lobes; bits 1-2: the
 //         alpha blend width, 0-3, the widest where bins differ; bit 3: alpha turns follow;
-//         bit 4: blend widths follow),
+//         bit 4: blend widths follow; bit 5: lifted vMF lobes, StfModel::lifted),
 //     f64 tau, albedo, g, escape probability, absorbed fraction, truncated fraction,
 //         uncollided fraction, once-scattered fraction,
 //     f32 alpha probability [bins], u8 bin status [bins] padded to 4 bytes,

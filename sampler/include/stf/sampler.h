@@ -83,8 +83,11 @@ class ShellSampler {
   // The parts, each a sample/pdf pair (for tests and for renderers that want them alone).
   int sample_alpha_bin(double u, double& remainder) const;
   double alpha_bin_probability(int bin) const { return model_.alpha_probability[bin]; }
+  // Lifted lobes about the bin's middle normal; the overloads at an exit point's `normal`.
   Vec3 sample_direction(int bin, double u2, double u3) const;
   double direction_pdf(int bin, const Vec3& w) const;
+  Vec3 sample_direction(int bin, double u2, double u3, const Vec3& normal) const;
+  double direction_pdf(int bin, const Vec3& w, const Vec3& normal) const;
 
   const StfModel& model() const { return model_; }
 
@@ -96,6 +99,10 @@ class ShellSampler {
   };
   double lobe_pdf(const Lobe& l, const Vec3& w) const;
   int alpha_bin_of(double cos_alpha) const;
+  Vec3 middle_normal(int bin) const;
+  // The normal that bin j's lifted lobes are mapped about at exit angle alpha: the exit normal
+  // turned back by the bin's turn there, as the direction is; and that turn.
+  Vec3 lift_normal(int j, double alpha, double& turn) const;
   // The smooth part's density at an exit point of `bin` with cos(alpha) and the direction
   // `local` (in the exit point's x-z frame): the bin's probability spread by its tilt, times
   // the direction density (blended with the neighbour's in blended bins).

@@ -18,7 +18,8 @@
 // Hemispherical lobes (a vMF lobe times its bin's outward factor) have no closed-form inverse:
 // a lobe draw is kept with the probability of its outward factor (at most 1), and redrawn
 // otherwise. That is exact; the tries per kept draw are 1 / (the lobe's mean outward factor).
-// (docs/render.md says which ways to fewer tries were weighed, and why none is here.)
+// Lifted lobes (StfModel::lifted) have the same fall-off at grazing and draw in one go: a lobe
+// direction, plus the exit normal, normalised (docs/render.md, "Lifted lobes").
 #pragma once
 
 #include <algorithm>
@@ -138,8 +139,10 @@ class StrideForm {
   // The blended bin whose density draws the direction at area fraction u of bin b.
   int blend_pick(int b, double u, double v) const;
   Vec3 sh_direction(int bin, double u, double v) const;
+  // Bin `bin`'s direction; lifted lobes about `normal` (the exit normal turned back by the bin's
+  // turn).
   template <typename Uniform>
-  Vec3 direction(int bin, Uniform& uniform) const;
+  Vec3 direction(int bin, const Vec3& normal, Uniform& uniform) const;
   Stride once_scattered(double r, double u1, double u2, double u3) const;
   // A draw on the unit sphere about the origin, in frame f (f.z the start direction): the
   // azimuth turns f once, and the exit point and direction are read off the turned frame.
@@ -147,7 +150,7 @@ class StrideForm {
   Stride draw(const Frame& f, Uniform& uniform) const;
 
   int bins_ = 0, lobes_per_bin_ = 0;
-  bool sh_ = false, turns_ = false;
+  bool sh_ = false, turns_ = false, lifted_ = false;
   double escape_probability_ = 0;
   AliasTable outcomes_;  // [bins] smooth bins, then the uncollided delta, then once scattered
   std::vector<Bin> bin_;
@@ -157,7 +160,7 @@ class StrideForm {
 };
 
 template <typename Uniform>
-Vec3 StrideForm::direction(int bin, Uniform& uniform) const {
+Vec3 StrideForm::direction(int bin, const Vec3& normal, Uniform& uniform) const {
   if (sh_) {
     const double u = uniform();
     return sh_direction(bin, u, uniform());
@@ -166,7 +169,8 @@ Vec3 StrideForm::direction(int bin, Uniform& uniform) const {
   const Lobe& l = bin_slice(lobe_, bin, lobes_per_bin_)[std::size_t(pick_lobe(sums, lobes_per_bin_, uniform()))];
   if (tables_->outward.empty()) {
     const double u = uniform();
-    return l.direction(u, uniform());
+    const Vec3 v = l.direction(u, uniform());
+    return lifted_ ? lift_direction(v, normal) : v;
   }
   const OutwardBin& factor = tables_->outward[std::size_t(bin)];
   for (;;) {
@@ -191,12 +195,12 @@ Stride StrideForm::draw(const Frame& f, Uniform& uniform) const {
   double sb, cb;
   sincos_2pi(uniform(), sb, cb);
   const int j = bin.blend > 0 ? blend_pick(outcome, a.u, uniform()) : outcome;
-  Vec3 w = direction(j, uniform);
-  if (turns_) {
-    double st, ct;
-    sincos_angle(bin_[std::size_t(j)].turn * (a.from_middle + bin.middle - bin_[std::size_t(j)].middle), st, ct);
-    w = {ct * w.x + st * w.z, w.y, ct * w.z - st * w.x};  // turn_about_y, with sin and cos at hand
-  }
+  double st = 0, ct = 1;
+  if (turns_) sincos_angle(bin_[std::size_t(j)].turn * (a.from_middle + bin.middle - bin_[std::size_t(j)].middle), st, ct);
+  // Lifted lobes about the exit normal turned back by the turn: (sin, 0, cos) of alpha - turn.
+  const Vec3 normal{a.sin_alpha * ct - a.cos_alpha * st, 0, a.cos_alpha * ct + a.sin_alpha * st};
+  Vec3 w = direction(j, normal, uniform);
+  if (turns_) w = {ct * w.x + st * w.z, w.y, ct * w.z - st * w.x};  // turn_about_y, with sin and cos at hand
   // The frame turned by the azimuth about its z (e1, e2, f.z), written out by component: the
   // operator form costs 1-2% of a stride (bench/stride_cost).
   const Vec3 e1{cb * f.x.x + sb * f.y.x, cb * f.x.y + sb * f.y.y, cb * f.x.z + sb * f.y.z};

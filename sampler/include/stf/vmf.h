@@ -62,6 +62,16 @@ struct VmfFrame {
   }
 };
 
+// A lifted lobe's direction (StfModel::lifted): the half-vector of the exit normal n and a lobe
+// direction v (v = -n, of probability 0, gives n).
+inline Vec3 lift_direction(const Vec3& v, const Vec3& n) {
+  const Vec3 h{v.x + n.x, v.y + n.y, v.z + n.z};
+  const double square = h.x * h.x + h.y * h.y + h.z * h.z;
+  if (!(square > 1e-300)) return n;
+  const double inv = 1 / std::sqrt(square);
+  return {h.x * inv, h.y * inv, h.z * inv};
+}
+
 // A vMF direction from (u0, u1) in [0, 1)^2.
 inline Vec3 sample_vmf(const VmfLobe& lobe, double u0, double u1) {
   double c = sample_vmf_cos(lobe.kappa, u0), s = std::sqrt(std::max(0.0, 1 - c * c));

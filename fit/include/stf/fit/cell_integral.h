@@ -28,6 +28,10 @@ using OutwardFactors = std::array<std::vector<double>, 3>;
 // each turned by rate * (alpha - (a0 + a1) / 2).
 struct BinTurn {
   double rate = 0, a0 = 0, a1 = 0, tilt = 0;
+  // Lifted lobes (StfModel::lifted): at each exit point the lobe is mapped to the outward
+  // hemisphere of that point's normal, so the counts average it over the exit points even where
+  // the rate is 0.
+  bool lifted = false;
 };
 
 // The quadrature levels SH cell probabilities are taken at. The fit's choice of smoothing
@@ -166,6 +170,10 @@ class LobeIntegrator {
   struct PointFactor {
     const OutwardFactors* table = nullptr;
     const OutwardBin* turned = nullptr;
+    // Lifted lobes: the exit normal n that a point x is mapped about, to v = 2 (x . n) x - n with
+    // its sub-cell's solid angle times 4 (x . n) (the reflection's Jacobian); none below n's
+    // tangent plane.
+    const Vec3* lift = nullptr;
     const double* at_level = nullptr;
     void for_level(int level) { at_level = table ? (*table)[std::size_t(level)].data() : nullptr; }
     double operator()(std::size_t i, const Vec3& x) const { return at_level ? at_level[i] : turned ? (*turned)(x) : 1.0; }
@@ -180,6 +188,7 @@ class LobeIntegrator {
     double exponent[kSize], scale[kSize], theta[kSize], theta_scale[kSize], mean_scale[kSize], factor[kSize];
     int row[kSize];
     const Vec3* x[kSize];
+    Vec3 mapped[kSize];  // lifted lobes' points, where x points
   };
 
   // Adds the batch's points to `out` and empties it. The totals are summed here first: added to
@@ -189,6 +198,12 @@ class LobeIntegrator {
   // Adds one lobe's cell masses, totals and their derivatives to `out`, each point times its
   // outward factor.
   void integrate_lobe(const Vec3& mean, double kappa, PointFactor factor, const LobeIntegrals& out) const;
+  // Calls add(cell, x, a, f) for each point of `level` in the cells within `reach` of `mean`: x
+  // the point (mapped about factor.lift for lifted lobes, into `batch`), a its sub-cell's solid
+  // angle (times the map's Jacobian), f its outward factor.
+  template <typename Add>
+  void for_each_point(int level, const Vec3& mean, double reach, const PointFactor& factor, PointBatch& batch,
+                      Add& add) const;
 
   // Copies of a lobe at n turns across the bin: the midpoints of n equal shares of the exit
   // points (the bin's tilted density in area), turned by the rate times their angle from the
@@ -196,12 +211,19 @@ class LobeIntegrator {
   struct Node {
     double angle, weight;
     OutwardBin outward;
+    Vec3 normal;  // the exit normal at the node's exit angle (lifted lobes are mapped about it)
   };
   void turn_nodes(const BinTurn& turn);
   // Copies enough that neighbours are a lobe width (1 / sqrt(kappa)) apart or closer.
+  // A lifted lobe is as narrow in the directions as a plain one of 4 kappa (the map halves
+  // angles), and its support turns with the exit normal: at least one copy every
+  // kLiftedNodeSpacing of exit angle, whatever its width.
   int nodes_needed(double kappa) const {
-    return std::clamp(int(std::ceil(kTurnNodesPerWidth * span_ * std::sqrt(kappa))), 1, kMaxTurnNodes);
+    return std::clamp(int(std::ceil(kTurnNodesPerWidth * span_ * std::sqrt(lifted_ ? 4 * kappa : kappa))), least_nodes_,
+                      kMaxTurnNodes);
   }
+  static constexpr double kLiftedNodeSpacing = 0.02;
+  int least_nodes_ = 1;
   static constexpr int kMaxTurnNodes = 16;
   // Copies one lobe width apart: closer copies slow the fit and move no model (docs/studies/
   // 2026-12-fit-measurements.md, "Densities that turn with the exit point").
@@ -209,6 +231,8 @@ class LobeIntegrator {
 
   const QuadratureLevels& levels_;
   const OutwardFactors* outward_;
+  bool lifted_ = false;
+  Vec3 middle_normal_;  // lifted lobes integrated as one copy are mapped about the bin's middle
   std::vector<std::vector<Node>> nodes_;  // [n - 1]: n copies; empty: the bin does not turn
   double span_ = 0;                       // the turn across the bin
   std::vector<int> row_of_cell_;

@@ -18,6 +18,7 @@ struct FitSettings {
   int size = 4;            // lobes (vmf) or band limit (sh)
   bool automatic = false;  // vmf:auto / sh:auto: size chosen by held-out error
   bool hemispherical = false;  // hvmf: vMF lobes times each bin's outward cosine (stf/hemisphere.h)
+  bool lifted = false;  // lvmf: vMF lobes lifted to each exit point's outward hemisphere (StfModel::lifted)
   int min_escapes = 10;    // bins with fewer escapes borrow their neighbour's model
   int alpha_degree = -1;   // sh: >= 0 replaces the bins' coefficients by a Chebyshev series in cos(alpha)
   int max_blend = StfModel::kMaxBlend;  // auto: the widest alpha blend tried (StfModel::alpha_blend)

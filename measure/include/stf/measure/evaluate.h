@@ -39,8 +39,10 @@ int alpha_group_size(const std::vector<double>& edges, const Table& reference);
 // Per-cell probabilities of the fitted density of alpha bin b, integrated over the cells of the
 // grid whose quadratures `levels` holds (build them once for all bins); they sum to 1.
 // With `turn`, of the bin's density turned by that angle about y (StfModel::alpha_turn).
+// Lifted lobes are mapped about the normals of the exit points with alpha in [exit_a0, exit_a1]
+// (both 0: the bin's own).
 std::vector<double> smooth_cell_probabilities(const StfModel& model, int bin, const fit::QuadratureLevels& levels,
-                                              double turn = 0);
+                                              double turn = 0, double exit_a0 = 0, double exit_a1 = 0);
 
 // A model's exit distribution in a reference table's layout, bin by reference bin, every part in
 // its exact cells: the smooth part (model bins spread over the reference bins they group by
@@ -54,11 +56,11 @@ class BinnedModel {
   BinnedModel(const StfModel& model, const Table& reference, const DirectionGrid& grid);
   int group() const { return group_; }
   // Reference bin b: its probability and its distribution over cells, from the smooth part's
-  // cell probabilities of model bins (`smooth_cells(j, turn)`: smooth_cell_probabilities of
-  // model bin j turned by `turn`, asked for b / group() and, in blended models, its neighbours;
-  // the turn is 0 unless the model turns, and then the reference bin is cut into slices of
-  // exit angle, each with its own turns).
-  using SmoothCells = std::function<const std::vector<double>&(int, double)>;
+  // cell probabilities of model bins (`smooth_cells(j, turn, a0, a1)`: smooth_cell_probabilities
+  // of model bin j turned by `turn` at the exit angles [a0, a1], asked for b / group() and, in
+  // blended models, its neighbours; the turn is 0 unless the model turns, and then the reference
+  // bin is cut into slices of exit angle, each with its own turns).
+  using SmoothCells = std::function<const std::vector<double>&(int, double, double, double)>;
   std::pair<double, std::vector<double>> bin(int b, const SmoothCells& smooth_cells) const;
 
  private:
@@ -74,12 +76,12 @@ class BinnedModel {
 class SmoothCellCache {
  public:
   SmoothCellCache(const StfModel& model, const fit::QuadratureLevels& levels) : model_(model), levels_(levels) {}
-  const std::vector<double>& operator()(int j, double turn = 0);
+  const std::vector<double>& operator()(int j, double turn = 0, double exit_a0 = 0, double exit_a1 = 0);
 
  private:
   struct Kept {
     int bin;
-    double turn;
+    double turn, exit_a0;  // the exit angles count for lifted lobes alone
     std::vector<double> cells;
   };
   const StfModel& model_;
