@@ -44,10 +44,7 @@ double StfModel::direction_pdf(int bin, const Vec3& w, const Vec3& normal) const
 }
 
 double StfModel::direction_pdf(int bin, const Vec3& w) const {
-  if (kind == ModelKind::kVmf && lifted) {
-    const double middle = 0.5 * (alpha_edges[std::size_t(bin)] + alpha_edges[std::size_t(bin) + 1]);
-    return direction_pdf(bin, w, {std::sin(middle), 0, std::cos(middle)});
-  }
+  if (kind == ModelKind::kVmf && lifted) return direction_pdf(bin, w, middle_normal(bin));
   if (kind == ModelKind::kVmf) {
     double p = 0;
     const BinSlice<const double> norm = hemispherical ? bin_slice(lobe_norm, bin, lobes) : BinSlice<const double>();

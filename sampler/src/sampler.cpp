@@ -48,18 +48,12 @@ int ShellSampler::alpha_bin_of(double cos_alpha) const {
   return int(it - cos_edges_.begin()) - 1;
 }
 
-Vec3 ShellSampler::middle_normal(int bin) const {
-  const double middle = 0.5 * (model_.alpha_edges[std::size_t(bin)] + model_.alpha_edges[std::size_t(bin) + 1]);
-  return {std::sin(middle), 0, std::cos(middle)};
-}
-
-Vec3 ShellSampler::lift_normal(int j, double alpha, double& turn) const {
-  turn = model_.alpha_turn.empty() ? 0.0 : model_.turn_angle(j, alpha);
-  return {std::sin(alpha - turn), 0, std::cos(alpha - turn)};
+Vec3 ShellSampler::lift_normal(double alpha, double turn) const {
+  return model_.lifted ? Vec3{std::sin(alpha - turn), 0, std::cos(alpha - turn)} : Vec3{0, 0, 1};
 }
 
 double ShellSampler::direction_pdf(int bin, const Vec3& w) const {
-  return direction_pdf(bin, w, model_.lifted ? middle_normal(bin) : Vec3{0, 0, 1});
+  return direction_pdf(bin, w, model_.lifted ? model_.middle_normal(bin) : Vec3{0, 0, 1});
 }
 
 double ShellSampler::direction_pdf(int bin, const Vec3& w, const Vec3& normal) const {
@@ -80,7 +74,7 @@ double ShellSampler::direction_pdf(int bin, const Vec3& w, const Vec3& normal) c
 int ShellSampler::sample_alpha_bin(double u, double& remainder) const { return alpha_.sample(u, remainder); }
 
 Vec3 ShellSampler::sample_direction(int bin, double u2, double u3) const {
-  return sample_direction(bin, u2, u3, model_.lifted ? middle_normal(bin) : Vec3{0, 0, 1});
+  return sample_direction(bin, u2, u3, model_.lifted ? model_.middle_normal(bin) : Vec3{0, 0, 1});
 }
 
 Vec3 ShellSampler::sample_direction(int bin, double u2, double u3, const Vec3& normal) const {
@@ -145,10 +139,9 @@ ExitSample ShellSampler::draw(double u0, double u1, double u2, double u3, int& b
   double below = 0;
   while (k + 1 < n && u2 >= below + weights[k]) below += weights[k++];
   const double rest = n > 1 ? std::clamp((u2 - below) / weights[k], 0.0, std::nextafter(1.0, 0.0)) : u2;
-  double turn = 0;
-  Vec3 normal{0, 0, 1};
-  if (model_.lifted || !model_.alpha_turn.empty()) normal = lift_normal(blend_bins[k], std::atan2(sin_alpha, cos_alpha), turn);
-  local = sample_direction(blend_bins[k], rest, u3, normal);
+  const double alpha = model_.lifted || !model_.alpha_turn.empty() ? std::atan2(sin_alpha, cos_alpha) : 0.0;
+  const double turn = model_.alpha_turn.empty() ? 0.0 : model_.turn_angle(blend_bins[k], alpha);
+  local = sample_direction(blend_bins[k], rest, u3, lift_normal(alpha, turn));
   if (!model_.alpha_turn.empty()) local = turn_about_y(local, turn);
   s.point = {sin_alpha * cb, sin_alpha * sb, cos_alpha};
   s.direction = rotate_z(local, cb, sb);
@@ -187,9 +180,9 @@ double ShellSampler::smooth_pdf(int bin, double cos_alpha, const Vec3& local) co
   // about the exit normal turned back with it.
   const double alpha = std::atan2(std::sqrt(std::max(0.0, 1 - cos_alpha * cos_alpha)), cos_alpha);
   for (int k = 0; k < n; ++k) {
-    double turn;
-    const Vec3 normal = lift_normal(blend_bins[k], alpha, turn);
-    direction += weights[k] * direction_pdf(blend_bins[k], model_.alpha_turn.empty() ? local : turn_about_y(local, -turn), normal);
+    const double turn = model_.alpha_turn.empty() ? 0.0 : model_.turn_angle(blend_bins[k], alpha);
+    direction += weights[k] * direction_pdf(blend_bins[k], model_.alpha_turn.empty() ? local : turn_about_y(local, -turn),
+                                            lift_normal(alpha, turn));
   }
   return point * direction;
 }

@@ -153,6 +153,11 @@ struct StfModel {
   double direction_pdf(int bin, const Vec3& w) const;
   // The same at an exit point of normal `normal` (which lifted lobes are mapped about).
   double direction_pdf(int bin, const Vec3& w, const Vec3& normal) const;
+  // The exit normal (sin, 0, cos) at the middle of bin b's alpha edges.
+  Vec3 middle_normal(int b) const {
+    const double middle = 0.5 * (alpha_edges[std::size_t(b)] + alpha_edges[std::size_t(b) + 1]);
+    return {std::sin(middle), 0, std::cos(middle)};
+  }
   void rebuild_sh_tables();
   void rebuild_lobe_norms();
   // A bin's mean outward cosine at w (1 for a model that is not hemispherical).

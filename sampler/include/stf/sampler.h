@@ -99,10 +99,9 @@ class ShellSampler {
   };
   double lobe_pdf(const Lobe& l, const Vec3& w) const;
   int alpha_bin_of(double cos_alpha) const;
-  Vec3 middle_normal(int bin) const;
-  // The normal that bin j's lifted lobes are mapped about at exit angle alpha: the exit normal
-  // turned back by the bin's turn there, as the direction is; and that turn.
-  Vec3 lift_normal(int j, double alpha, double& turn) const;
+  // The normal lifted lobes are mapped about at exit angle alpha in a bin turned by `turn` there:
+  // the exit normal turned back with the direction ((0, 0, 1), unused, for other lobes).
+  Vec3 lift_normal(double alpha, double turn) const;
   // The smooth part's density at an exit point of `bin` with cos(alpha) and the direction
   // `local` (in the exit point's x-z frame): the bin's probability spread by its tilt, times
   // the direction density (blended with the neighbour's in blended bins).

@@ -198,7 +198,7 @@ Stride StrideForm::draw(const Frame& f, Uniform& uniform) const {
   double st = 0, ct = 1;
   if (turns_) sincos_angle(bin_[std::size_t(j)].turn * (a.from_middle + bin.middle - bin_[std::size_t(j)].middle), st, ct);
   // Lifted lobes about the exit normal turned back by the turn: (sin, 0, cos) of alpha - turn.
-  const Vec3 normal{a.sin_alpha * ct - a.cos_alpha * st, 0, a.cos_alpha * ct + a.sin_alpha * st};
+  const Vec3 normal = lifted_ ? Vec3{a.sin_alpha * ct - a.cos_alpha * st, 0, a.cos_alpha * ct + a.sin_alpha * st} : Vec3{};
   Vec3 w = direction(j, normal, uniform);
   if (turns_) w = {ct * w.x + st * w.z, w.y, ct * w.z - st * w.x};  // turn_about_y, with sin and cos at hand
   // The frame turned by the azimuth about its z (e1, e2, f.z), written out by component: the
