@@ -34,7 +34,11 @@ struct ScenePaths::State {
   double throughput = 1, radiance = 0;
   int inside = -1;           // the object whose medium the path is in, or -1
   bool after_nee = false;    // heading straight on from a vertex that cast a shadow ray
-  double scatter_pdf = 0;    // that vertex's density (per sr) of the direction w
+  // That vertex's medium (null: the ground) and the cosine its density of w depends on; the
+  // density itself is needed only where the path meets a light, far rarer than collisions.
+  const ChannelMedium* scatter_medium = nullptr;
+  double scatter_cos = 0;
+  double scatter_pdf() const { return scatter_medium ? phase_density(*scatter_medium, scatter_cos) : scatter_cos / kPi; }
   double bound = -1;         // the free radius at x, when known
   bool tight = false;        // bound is the tightest the geometry gives at x (no closer look left)
 };
@@ -111,10 +115,10 @@ double ScenePaths::escape(const State& s, int c) const {
   double l = scene_.light.sky[std::size_t(c)];
   if (environment_) {
     l = environment_->radiance(s.w, c);
-    if (s.after_nee && l > 0) l *= power_heuristic(s.scatter_pdf, environment_->pdf(s.w));
+    if (s.after_nee && l > 0) l *= power_heuristic(s.scatter_pdf(), environment_->pdf(s.w));
   }
   if (dot(s.w, sun_) >= cos_sun_)
-    l += scene_.light.sun[std::size_t(c)] * (s.after_nee ? power_heuristic(s.scatter_pdf, sun_pdf_) : 1.0);
+    l += scene_.light.sun[std::size_t(c)] * (s.after_nee ? power_heuristic(s.scatter_pdf(), sun_pdf_) : 1.0);
   return l;
 }
 
@@ -214,7 +218,7 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
   else s.bound = 0, look_closer(s), ++counters.distance_queries;
   nee_at_collision(s, c, s.bound, rng, counters);
   const CosSin<double> cs = sample_hg(m.hg, rng.uniform());
-  s.scatter_pdf = phase_density(m, cs.cos_theta), s.after_nee = next_event_;
+  s.scatter_medium = &m, s.scatter_cos = cs.cos_theta, s.after_nee = next_event_;
   s.w = around(s.w, cs.cos_theta, cs.sin_theta, rng.uniform());
   return true;
 }
@@ -283,7 +287,7 @@ bool ScenePaths::ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& r
                          [&](const Vec3& l) { return geometry_.spawn(x, h.normal, l); });
   const double u = rng.uniform(), cos_o = std::sqrt(1 - u);  // cosine-weighted
   s.w = around(h.normal, cos_o, std::sqrt(u), rng.uniform());
-  s.scatter_pdf = cos_o / kPi, s.after_nee = next_event_;
+  s.scatter_medium = nullptr, s.scatter_cos = cos_o, s.after_nee = next_event_;
   s.throughput *= albedo;
   s.x = geometry_.spawn(s.x, h.normal, s.w);
   return true;
