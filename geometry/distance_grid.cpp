@@ -11,12 +11,6 @@ namespace {
 
 constexpr int kCoarse = 4;  // coarse cells are this many cells wide
 
-float rounded_down(double d) {
-  float f = float(d);
-  if (double(f) > d) f = std::nextafter(f, 0.0f);
-  return f;
-}
-
 }  // namespace
 
 DistanceGrid::DistanceGrid(const Boundary& boundary, const Bounds& region, int cells, const RunContext& run) {
@@ -29,19 +23,35 @@ DistanceGrid::DistanceGrid(const Boundary& boundary, const Bounds& region, int c
   n_[2] = std::max(1, int(std::ceil(extent.z / cell_)));
   // The centre a query computes may differ from the one measured here by rounding.
   slack_ = 1e-12 * (region.largest_side() + length(region.lower) + length(region.upper));
+  for (int a = 0; a < 3; ++a) bricks_[a] = (n_[a] + 3) / 4;
   coarse_ = coarse(boundary, run);
-  std::vector<double> near(std::size_t(n_[0]) * std::size_t(n_[1]) * std::size_t(n_[2]), HUGE_VAL);
+  std::vector<double> near(std::size_t(bricks_[0]) * std::size_t(bricks_[1]) * std::size_t(bricks_[2]) * 64, HUGE_VAL);
   rasterise_band(boundary, near, run);
-  value_.resize(near.size());
   const double band = this->band();
   parallel_for(n_[2], run, [&](std::int64_t k, int) {
     for (int j = 0; j < n_[1]; ++j)
       for (int i = 0; i < n_[0]; ++i) {
-        const std::size_t at = index(i, j, int(k));
+        double& v = near[index(i, j, int(k))];
         // Where the nearest triangle is within the band it was rasterised, and v is exact.
-        const double v = near[at] <= band ? near[at] : std::max(band, deep_bound(i, j, int(k))) * (1 - 1e-12);
-        value_[at] = rounded_down(v);
+        if (v > band) v = std::max(band, deep_bound(i, j, int(k))) * (1 - 1e-12);
       }
+  });
+  quantise(near, run);
+}
+
+void DistanceGrid::quantise(const std::vector<double>& v, const RunContext& run) {
+  double largest = 0;
+  for (double d : v)
+    if (d < HUGE_VAL) largest = std::max(largest, d);  // cells of a brick past the grid stay unset
+  unit_ = largest > 0 ? largest / 65535 : 1.0;
+  value_.assign(v.size(), 0);
+  parallel_for(std::int64_t(v.size() / 64), run, [&](std::int64_t brick, int) {
+    for (std::size_t at = std::size_t(brick) * 64; at < std::size_t(brick + 1) * 64; ++at) {
+      if (!(v[at] < HUGE_VAL)) continue;
+      double q = std::min(65535.0, std::floor(v[at] / unit_));
+      while (q > 0 && q * unit_ > v[at]) q -= 1;  // rounded down, never above the distance
+      value_[at] = std::uint16_t(q);
+    }
   });
 }
 

@@ -178,7 +178,9 @@ TEST(Boundary, GridBoundIsNeverAboveTheTrueDistance) {
       EXPECT_LE(g, exact) << name;
       const double tight = grid.tight_lower_bound(p);
       EXPECT_LE(tight, exact) << name;
-      EXPECT_GE(tight, g) << name;
+      // The eight centres include the one-cell bound's; their offsets are summed in another
+      // order, so the two may differ by rounding.
+      EXPECT_GE(tight, g - 1e-12) << name;
       // Exact at the centres within the band, so within a cell's diagonal there; deeper within
       // a coarse cell's.
       EXPECT_GE(g, exact - std::sqrt(3.0) * (exact < grid.band() ? 1 : 5) * grid.cell()) << name;
@@ -187,7 +189,7 @@ TEST(Boundary, GridBoundIsNeverAboveTheTrueDistance) {
     // On average within 1.25 cells: 0.4-1.0 here, where the bound from the one coarse centre
     // that holds a deep cell fell 1.3-1.6 cells short in the icosphere and the rounded box.
     EXPECT_LT(slack / double(points.size()), 1.25 * grid.cell()) << name;
-    EXPECT_EQ(grid.bytes() % sizeof(float), 0u);
+    EXPECT_EQ(grid.bytes() % 128, 0u);  // whole bricks of 64 16-bit values
   }
 }
 
