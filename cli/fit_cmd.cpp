@@ -114,6 +114,8 @@ measure::ToleranceFit fit_to_tolerance(const FitOptions& o, const Table& table, 
     std::fprintf(stderr, "stf fit: TV bound by size:%s\n", tried.c_str());
     std::fprintf(stderr, "stf fit: %d alpha bins, %s, size %d: TV <= %.3g (%s %.3g)\n", r.fitted.alpha_bins,
                  r.fitted.grid.c_str(), r.size, r.certificate.tv_bound, r.met ? "within" : "NOT within", tolerance);
+    if (r.lifted_bound >= 0)
+      std::fprintf(stderr, "stf fit: lifted lobes reached TV <= %.3g only: hemispherical lobes kept\n", r.lifted_bound);
   }
   return r;
 }

@@ -247,5 +247,34 @@ TEST(FitToTolerance, ChoosesLessForLooserTolerancesAndTheBoundHolds) {
             fit.alpha_bins);  // smooth in alpha: a loose tolerance merges bins
 }
 
+// Lifted lobes that miss the tolerance are fitted again as hemispherical lobes, and the lower
+// bound of the two families is kept; where they meet it, they are kept without a second fit.
+TEST(FitToTolerance, LiftedLobesThatMissFallBackToHemisphericalOnes) {
+  const Table fit = make_table(4, 0.99, 0.7, 50'000, 1, "healpix:4", 12),
+              heldout = make_table(4, 0.99, 0.7, 50'000, 2, "healpix:4", 12);
+  const FitSettings s = parse_model_spec("lvmf:auto");
+  const ToleranceFit loose = fit_to_tolerance(fit, heldout, 0.3, s);
+  ASSERT_TRUE(loose.met);
+  EXPECT_TRUE(loose.model.lifted);
+  EXPECT_EQ(loose.lifted_bound, -1);
+  const ToleranceFit tight = fit_to_tolerance(fit, heldout, 1e-3, s);  // below the noise: met by neither
+  ASSERT_FALSE(tight.met);
+  // Both families were tried: the sizes start again where the hemispherical fits begin.
+  int restarts = 0;
+  double lowest = 1;
+  for (std::size_t i = 0; i < tight.attempts.size(); ++i) {
+    restarts += i > 0 && tight.attempts[i].first <= tight.attempts[i - 1].first;
+    lowest = std::min(lowest, tight.attempts[i].second);
+  }
+  EXPECT_EQ(restarts, 1);
+  EXPECT_EQ(tight.certificate.tv_bound, lowest);
+  if (tight.model.lifted) {
+    EXPECT_EQ(tight.lifted_bound, -1);
+  } else {
+    EXPECT_TRUE(tight.model.hemispherical);
+    EXPECT_GT(tight.lifted_bound, tight.certificate.tv_bound);
+  }
+}
+
 }  // namespace
 }  // namespace stf::fit

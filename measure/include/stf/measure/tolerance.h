@@ -71,12 +71,17 @@ struct ToleranceFit {
   Certificate certificate;
   bool met = false;                              // certificate within the tolerance
   std::vector<std::pair<int, double>> attempts;  // (size, TV bound) of each fit tried
+  // Lifted lobes (lvmf) that missed the tolerance where hemispherical ones were kept: the lifted
+  // lobes' bound; else -1.
+  double lifted_bound = -1;
 };
 
 // `settings` gives the model kind and the sizes to try: vmf:auto / sh:auto all of
 // auto_candidates; vmf:K / sh:L those below K (L) and K (L) itself. When nothing meets the
-// tolerance the best certified fit is returned with met = false. With settings.run.cancel set the
-// result must be thrown away.
+// tolerance the best certified fit is returned with met = false. Lifted lobes (lvmf) that miss
+// it are fitted again as hemispherical lobes (hvmf), and these are kept where they meet it or
+// have the lower bound: a sphere then strides with retries rather than outside the tolerance.
+// With settings.run.cancel set the result must be thrown away.
 ToleranceFit fit_to_tolerance(const Table& fit, const Table& heldout, double tolerance,
                               const fit::FitSettings& settings);
 
