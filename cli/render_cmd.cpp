@@ -243,8 +243,8 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--tolerance", o->tolerance, "Without --pack: TV tolerance of the spheres built")
       ->capture_default_str();
   cmd->add_option("--model", o->model,
-                  "Without --pack: the spheres' model, hvmf:auto or lvmf:auto (lifted lobes: strides without retries; "
-                  "docs/render.md, \"Lifted lobes\")")
+                  "Without --pack: the spheres' model, hvmf:auto or lvmf:auto (lifted lobes: strides without retries, "
+                  "hvmf where they miss the tolerance; docs/render.md, \"Lifted lobes\")")
       ->capture_default_str();
   cmd->add_option("--cache", o->cache,
                   "Cache of the spheres built (default: $STF_CACHE_DIR, else $XDG_CACHE_HOME/stf or ~/.cache/stf)");
