@@ -23,9 +23,9 @@ DistanceGrid::DistanceGrid(const Boundary& boundary, const Bounds& region, int c
   n_[2] = std::max(1, int(std::ceil(extent.z / cell_)));
   // The centre a query computes may differ from the one measured here by rounding.
   slack_ = 1e-12 * (region.largest_side() + length(region.lower) + length(region.upper));
-  for (int a = 0; a < 3; ++a) bricks_[a] = (n_[a] + 3) / 4;
+  for (int a = 0; a < 3; ++a) nc_[a] = (n_[a] + kCoarse - 1) / kCoarse;
   coarse_ = coarse(boundary, run);
-  std::vector<double> near(std::size_t(bricks_[0]) * std::size_t(bricks_[1]) * std::size_t(bricks_[2]) * 64, HUGE_VAL);
+  std::vector<double> near(coarse_.size() * 64, HUGE_VAL);  // a brick is a coarse cell
   rasterise_band(boundary, near, run);
   const double band = this->band();
   parallel_for(n_[2], run, [&](std::int64_t k, int) {
@@ -88,9 +88,8 @@ double DistanceGrid::deep_bound(int i, int j, int k) const {
   return best;
 }
 
-std::vector<double> DistanceGrid::coarse(const Boundary& boundary, const RunContext& run) {
-  int (&nc)[3] = nc_;
-  for (int a = 0; a < 3; ++a) nc[a] = (n_[a] + kCoarse - 1) / kCoarse;
+std::vector<double> DistanceGrid::coarse(const Boundary& boundary, const RunContext& run) const {
+  const int (&nc)[3] = nc_;
   std::vector<double> d(std::size_t(nc[0]) * std::size_t(nc[1]) * std::size_t(nc[2]));
   const double big = kCoarse * cell_;
   parallel_for(nc[2], run, [&](std::int64_t k, int) {

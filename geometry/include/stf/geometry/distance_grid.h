@@ -71,24 +71,24 @@ class DistanceGrid {
 
  private:
   std::size_t index(int i, int j, int k) const {
-    const std::size_t brick = (std::size_t(k >> 2) * std::size_t(bricks_[1]) + std::size_t(j >> 2)) * std::size_t(bricks_[0]) +
+    const std::size_t brick = (std::size_t(k >> 2) * std::size_t(nc_[1]) + std::size_t(j >> 2)) * std::size_t(nc_[0]) +
                               std::size_t(i >> 2);
     return brick * 64 + std::size_t((i & 3) | (j & 3) << 2 | (k & 3) << 4);
   }
   double value(int i, int j, int k) const { return value_[index(i, j, k)] * unit_; }
   void quantise(const std::vector<double>& v, const RunContext& run);
   Vec3 centre(int i, int j, int k) const { return origin_ + cell_ * Vec3{i + 0.5, j + 0.5, k + 0.5}; }
-  std::vector<double> coarse(const Boundary& boundary, const RunContext& run);
+  std::vector<double> coarse(const Boundary& boundary, const RunContext& run) const;
   // The best bound at cell (i, j, k)'s centre from the coarse grid's exact distances.
   double deep_bound(int i, int j, int k) const;
   void rasterise_band(const Boundary& boundary, std::vector<double>& near, const RunContext& run) const;
 
   Vec3 origin_;
   double cell_ = 0, inv_cell_ = 0, slack_ = 0;
-  int n_[3] = {0, 0, 0}, bricks_[3] = {0, 0, 0};
+  int n_[3] = {0, 0, 0};
   double unit_ = 0;
   std::vector<std::uint16_t> value_;  // v at cell centres in units, rounded down, in bricks
-  int nc_[3] = {0, 0, 0};
+  int nc_[3] = {0, 0, 0};  // coarse cells along each axis, each a brick of 4 x 4 x 4 cells
   std::vector<double> coarse_;  // exact distances at the coarse cells' centres
 };
 
