@@ -55,8 +55,9 @@ bool StrideForm::fit_angle(Bin& bin, double a0, double a1) {
   // Checked on a grid eight times finer than the points it interpolates.
   for (int k = 0; k <= 8 * (kAngleDegree + 1); ++k) {
     const double r = k / (8.0 * (kAngleDegree + 1)), x = 2 * r - 1;
-    double p = bin.angle[kAngleDegree], dp = 0;
-    for (int i = kAngleDegree - 1; i >= 0; --i) dp = dp * x + p, p = p * x + bin.angle[i];
+    double dp = 0;  // d p / d x
+    for (int i = kAngleDegree; i >= 1; --i) dp = dp * x + i * bin.angle[i];
+    const double p = angle_polynomial(bin.angle, x);  // as the draw sums it
     if (std::abs(p - exact.offset(r)) > kAngleError || std::abs(2 * dp / exact.slope(r) - 1) > kAngleSlopeError)
       return false;
   }
@@ -91,9 +92,7 @@ StrideForm::ExitAngle StrideForm::exit_angle(const Bin& bin, double r) const {
     // The polynomial, then the sine and cosine of the offset by their series (|offset| is at
     // most half a bin: 0.3 rad is a bin wider than any model's, where the terms left out are
     // below 1e-17).
-    const double x = 2 * r - 1;
-    double d = bin.angle[kAngleDegree];
-    for (int i = kAngleDegree - 1; i >= 0; --i) d = d * x + bin.angle[i];
+    const double d = angle_polynomial(bin.angle, 2 * r - 1);
     double sd, cd;
     sincos_angle(d, sd, cd);
     a.cos_alpha = bin.cos_middle * cd - bin.sin_middle * sd;

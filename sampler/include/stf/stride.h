@@ -55,15 +55,16 @@ inline double atan_near_zero(double t) {
 }
 
 // sin and cos of any angle: the Taylor series to a^13 / a^14 for |a| <= 0.3 (below 1e-20 off;
-// turns within a bin are small), else sincos_2pi's polynomials.
+// turns within a bin are small), else sincos_2pi's polynomials. The series are summed in pairs
+// of terms (Estrin's scheme: three short chains of multiply-adds rather than one of six).
 inline void sincos_angle(double angle, double& s, double& c) {
   if (std::abs(angle) <= 0.3) {
-    const double a2 = angle * angle;
-    const double sp =
-        -1.0 / 6 + a2 * (1.0 / 120 + a2 * (-1.0 / 5040 + a2 * (1.0 / 362880 + a2 * (-1.0 / 39916800 + a2 / 6227020800))));
-    const double cp =
-        -0.5 + a2 * (1.0 / 24 + a2 * (-1.0 / 720 + a2 * (1.0 / 40320 + a2 * (-1.0 / 3628800 + a2 * (1.0 / 479001600 - a2 / 87178291200)))));
-    s = angle + angle * a2 * sp, c = 1 + a2 * cp;
+    const double y = angle * angle, y2 = y * y, y4 = y2 * y2;
+    const double sp = (-1.0 / 6 + y * (1.0 / 120)) + (-1.0 / 5040 + y * (1.0 / 362880)) * y2 +
+                      (-1.0 / 39916800 + y * (1.0 / 6227020800)) * y4;
+    const double cp = (-0.5 + y * (1.0 / 24)) + (-1.0 / 720 + y * (1.0 / 40320)) * y2 +
+                      ((-1.0 / 3628800 + y * (1.0 / 479001600)) + y2 * (-1.0 / 87178291200)) * y4;
+    s = angle + angle * y * sp, c = 1 + y * cp;
     return;
   }
   double turns = angle * (0.5 / kPi);
@@ -79,6 +80,14 @@ class StrideForm {
   // half that).
   static constexpr int kAngleDegree = 9;
   static constexpr double kAngleError = 1e-10, kAngleSlopeError = 1e-7;
+  // A bin's polynomial at x, by Estrin's scheme (the draw's exit angle waited on nine dependent
+  // multiply-adds of Horner's; bench/stride_cost).
+  static double angle_polynomial(const double (&a)[kAngleDegree + 1], double x) {
+    static_assert(kAngleDegree == 9, "the scheme below sums ten coefficients");
+    const double x2 = x * x, x4 = x2 * x2, x8 = x4 * x4;
+    const double low = (a[0] + a[1] * x) + (a[2] + a[3] * x) * x2, high = (a[4] + a[5] * x) + (a[6] + a[7] * x) * x2;
+    return low + high * x4 + (a[8] + a[9] * x) * x8;
+  }
 
   // The model must be valid (as read_pack or fit/ produce it). `tables`, when given, must be the
   // draw tables of this model (a ShellSampler's tables()); else they are built here.
