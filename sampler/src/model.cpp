@@ -35,12 +35,11 @@ double StfModel::outward_factor(int bin, const Vec3& w) const {
 
 double StfModel::direction_pdf(int bin, const Vec3& w, const Vec3& normal) const {
   if (kind != ModelKind::kVmf || !lifted) return direction_pdf(bin, w);
-  const double up = dot(w, normal);
-  if (!(up > 0)) return 0;
-  const Vec3 v = 2 * up * w - normal;  // the normal mirrored about w
-  double p = 0;
-  for (const VmfLobe& l : lobes_of(bin)) p += l.weight * vmf_pdf(l.kappa, dot(l.mean, v));
-  return 4 * up * p;
+  return lifted_pdf(w, normal, [&](const Vec3& v) {
+    double p = 0;
+    for (const VmfLobe& l : lobes_of(bin)) p += l.weight * vmf_pdf(l.kappa, dot(l.mean, v));
+    return p;
+  });
 }
 
 double StfModel::direction_pdf(int bin, const Vec3& w) const {

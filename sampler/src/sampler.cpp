@@ -58,17 +58,13 @@ double ShellSampler::direction_pdf(int bin, const Vec3& w) const {
 
 double ShellSampler::direction_pdf(int bin, const Vec3& w, const Vec3& normal) const {
   if (model_.kind == ModelKind::kSh) return model_.direction_pdf(bin, w);
-  if (model_.lifted) {
-    const double up = dot(w, normal);
-    if (!(up > 0)) return 0;
-    const Vec3 v = 2 * up * w - normal;  // the normal mirrored about w
+  auto lobes = [&](const Vec3& v) {
     double p = 0;
     for (const Lobe& l : bin_slice(lobes_, bin, model_.lobes)) p += l.weight * lobe_pdf(l, v);
-    return 4 * up * p;
-  }
-  double p = 0;
-  for (const Lobe& l : bin_slice(lobes_, bin, model_.lobes)) p += l.weight * lobe_pdf(l, w);
-  return model_.hemispherical ? p * tables_->outward[std::size_t(bin)](w) : p;
+    return p;
+  };
+  if (model_.lifted) return lifted_pdf(w, normal, lobes);
+  return model_.hemispherical ? lobes(w) * tables_->outward[std::size_t(bin)](w) : lobes(w);
 }
 
 int ShellSampler::sample_alpha_bin(double u, double& remainder) const { return alpha_.sample(u, remainder); }

@@ -72,6 +72,15 @@ inline Vec3 lift_direction(const Vec3& v, const Vec3& n) {
   return {h.x * inv, h.y * inv, h.z * inv};
 }
 
+// A lifted density at w about the exit normal n, from its lobes' density `pdf` over the whole
+// sphere: 4 (w . n) pdf(v) at v = 2 (w . n) w - n (n mirrored about w, the direction whose
+// half-vector with n is w; 4 (w . n) the Jacobian), 0 below n's tangent plane.
+template <typename Pdf>
+double lifted_pdf(const Vec3& w, const Vec3& n, Pdf&& pdf) {
+  const double up = dot(w, n);
+  return up > 0 ? 4 * up * pdf(2 * up * w - n) : 0.0;
+}
+
 // A vMF direction from (u0, u1) in [0, 1)^2.
 inline Vec3 sample_vmf(const VmfLobe& lobe, double u0, double u1) {
   double c = sample_vmf_cos(lobe.kappa, u0), s = std::sqrt(std::max(0.0, 1 - c * c));
