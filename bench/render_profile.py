@@ -6,7 +6,9 @@ collisions (free flights, phase draws, shadow rays) and the rest, per camera pat
 Both methods run on one thread under `perf record` (after a small run that puts the strides'
 pack in stf render's cache), one after the other;
 each profile's shares are taken of the render alone (the distance grid's and the pack's set-up
-are left out), times the run's seconds per path. A profile is one run, so its shares are not
+are left out), times the run's seconds per path. Functions are put in parts by name, so time
+inlined into a caller counts as the caller's, and libm's (the logs of free flights and of lobe
+draws alike) as the collisions'. A profile is one run, so its shares are not
 shifted by the load of a shared machine the way separate timings are. Also reported:
   - free_strides_speed_up: brute force's ns per path over the strided path's without its
     strides, the speed-up at equal sample count if a stride cost nothing;
