@@ -12,7 +12,8 @@ draws alike) as the collisions'. A profile is one run, so its shares are not
 shifted by the load of a shared machine the way separate timings are. Also reported:
   - free_strides_speed_up: brute force's ns per path over the strided path's without its
     strides, the speed-up at equal sample count if a stride cost nothing;
-  - speed_up: the same with the strides, brute over strided ns per path.
+  - speed_up: the same with the strides, brute over strided ns per path;
+  - ns_per_event: each part's time per collision, stride, free-radius look and ray.
 JSON on stdout.
 Usage:
   bench/render_profile.py SCENE.toml [--size 64] [--spp 300] [--brute-spp 80] [--pack PACK]
@@ -77,9 +78,13 @@ def profile(binary, scene, method, size, spp, pack, work):
     rendering = 100.0 - shares.pop("set_up", 0.0)
     ns_per_path = 1e9 * s["seconds"] / s["paths"]
     per_path = {k: round(ns_per_path * v / rendering, 1) for k, v in sorted(shares.items())}
-    counts = {k: round(s[k] / s["paths"], 2) for k in ("collisions", "strides", "distance_queries", "shadow_rays")}
+    counts = {k: s[k] / s["paths"] for k in ("collisions", "strides", "distance_queries", "rays", "shadow_rays")}
+    # Each part's ns per event it is named for (a collision's part also holds every step's
+    # bookkeeping, a stride's its sphere lookup).
+    events = {"collisions": "collisions", "strides": "strides", "free_radius": "distance_queries", "rays": "rays"}
+    per_event = {k: round(per_path[k] / counts[e], 1) for k, e in events.items() if k in per_path and counts[e] > 0}
     return {"method": method, "spp": spp, "ns_per_path": round(ns_per_path, 1), "ns_per_path_by_part": per_path,
-            "per_path": counts}
+            "per_path": {k: round(v, 2) for k, v in counts.items()}, "ns_per_event": per_event}
 
 
 def main():

@@ -67,6 +67,7 @@ std::string scene_stats(const render::Image& image, const PackBuild& build, cons
                               {"strides", image.strides},
                               {"distance_queries", image.distance_queries},
                               {"shadow_rays", image.shadow_rays},
+                              {"rays", image.rays},
                               {"ideal_collisions", image.ideal_collisions},
                               {"free_radius", geometry.method() == render::FreeRadius::kGrid ? "grid" : "query"},
                               {"grid_bytes", geometry.grid_bytes()},

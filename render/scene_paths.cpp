@@ -127,11 +127,12 @@ Vec3 ScenePaths::toward_sun(PixelRng& rng) const {
   return around(sun_, ct, std::sqrt(std::max(0.0, 1 - ct * ct)), rng.uniform());
 }
 
-double ScenePaths::transmittance(Vec3 x, const Vec3& l, int c) const {
+double ScenePaths::transmittance(Vec3 x, const Vec3& l, int c, PathCounters& counters) const {
   // Each crossing either leaves a medium (its chord attenuates) or enters one.
   double t = 1;
   for (int crossings = 0; crossings < 256; ++crossings) {
     const SurfaceHit h = geometry_.trace(x, l);
+    ++counters.rays;
     if (!h.found) return t;
     if (h.object == kGround || ior_[std::size_t(h.object)] != 1) return 0;  // opaque or specular
     if (dot(l, h.normal) > 0) t *= std::exp(-medium(h.object, c).sigma_t * h.t);
@@ -146,7 +147,7 @@ double ScenePaths::light_ray(const LightSample& light, int c, PathCounters& coun
   const double f = density(light.l);
   if (!(f > 0) || !(light.radiance > 0)) return 0;
   ++counters.shadow_rays;
-  const double t = transmittance(start(light.l), light.l, c);
+  const double t = transmittance(start(light.l), light.l, c, counters);
   return t > 0 ? f * t * light.radiance / light.pdf * power_heuristic(light.pdf, f) : 0.0;
 }
 
@@ -202,6 +203,7 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
   if (t >= s.bound && !s.tight) look_closer(s), ++counters.distance_queries;  // before a ray
   if (t >= s.bound) {  // the flight may reach the boundary
     const SurfaceHit h = geometry_.trace(s.x, s.w, t);
+    ++counters.rays;
     if (h.found) {
       s.x += h.t * s.w, s.bound = -1;
       cross(s, h, rng);
@@ -295,6 +297,7 @@ bool ScenePaths::ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& r
 
 bool ScenePaths::outside_step(State& s, int c, PixelRng& rng, PathCounters& counters) const {
   const SurfaceHit h = geometry_.trace(s.x, s.w);
+  ++counters.rays;
   if (!h.found) {
     s.radiance += s.throughput * escape(s, c);
     return false;

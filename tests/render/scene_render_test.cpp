@@ -60,6 +60,9 @@ TEST_F(SceneRender, NextEventEstimationDrawsTheImageOfEscapingPaths) {
   const render::Image with = draw(kLitScene, 300, 5, true), without = draw(kLitScene, 1200, 6, false);
   EXPECT_GT(with.shadow_rays, 0);
   EXPECT_EQ(without.shadow_rays, 0);
+  // Every camera path casts its first ray from outside, and every shadow ray at least one leg.
+  EXPECT_GE(with.rays, with.paths + with.shadow_rays);
+  EXPECT_GE(without.rays, without.paths);
   const ImageComparison r =
       compare_images(without.mean, without.variance_of_mean, with.mean, with.variance_of_mean, 24, 24, 3, 4);
   EXPECT_GT(r.blocks, 80);

@@ -67,7 +67,7 @@ class ScenePaths {
   double escape(const State& s, int c) const;
   // A direction toward a uniform point of the sun's disc (density sun_pdf_ per sr).
   Vec3 toward_sun(PixelRng& rng) const;
-  double transmittance(Vec3 x, const Vec3& l, int c) const;
+  double transmittance(Vec3 x, const Vec3& l, int c, PathCounters& counters) const;
   // What shadow rays from a vertex bring: one toward the sun (`to_sun`, drawn by toward_sun)
   // and, with a map, one toward a direction drawn from it, each weighted by the power
   // heuristic against the vertex's own density(l) of scattering into l; start(l) is where
