@@ -22,7 +22,7 @@ struct PathCounters {
   std::int64_t strides = 0;           // jumps through a precomputed sphere
   std::int64_t distance_queries = 0;  // free radii asked of a mesh's grid or Embree (scenes)
   std::int64_t shadow_rays = 0;       // next-event estimation toward the sun (scenes)
-  std::int64_t rays = 0;  // cast against the surfaces (scenes): flights that may leave, paths outside, shadow rays' legs
+  std::int64_t rays = 0;              // at the surfaces (scenes): flights, paths outside, shadow legs
   std::int64_t ideal_collisions = 0;  // inside ideal strides (scenes, PathOptions::ideal_strides)
 };
 
