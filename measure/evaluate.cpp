@@ -116,11 +116,11 @@ BinnedModel::BinnedModel(const StfModel& model, const Table& reference, const Di
 const std::vector<double>& SmoothCellCache::operator()(int j, double turn, double exit_a0, double exit_a1) {
   if (!model_.lifted) exit_a0 = exit_a1 = 0;  // the same cells at every exit angle
   for (const Kept& k : kept_)
-    if (k.bin == j && k.turn == turn && k.exit_a0 == exit_a0) return k.cells;
+    if (k.bin == j && k.turn == turn && k.exit_a0 == exit_a0 && k.exit_a1 == exit_a1) return k.cells;
   // A reference bin needs its model bin and the 2 alpha_blend bins around it (turning models
   // need each at several turns, and keep none for long).
   if (kept_.size() >= std::size_t(2 * model_.alpha_blend + 1)) kept_.erase(kept_.begin());
-  kept_.push_back({j, turn, exit_a0, smooth_cell_probabilities(model_, j, levels_, turn, exit_a0, exit_a1)});
+  kept_.push_back({j, turn, exit_a0, exit_a1, smooth_cell_probabilities(model_, j, levels_, turn, exit_a0, exit_a1)});
   return kept_.back().cells;
 }
 

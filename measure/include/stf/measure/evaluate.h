@@ -81,7 +81,7 @@ class SmoothCellCache {
  private:
   struct Kept {
     int bin;
-    double turn, exit_a0;  // the exit angles count for lifted lobes alone
+    double turn, exit_a0, exit_a1;  // the exit angles count for lifted lobes alone
     std::vector<double> cells;
   };
   const StfModel& model_;
