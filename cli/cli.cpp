@@ -15,8 +15,6 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <sstream>
-#include <toml.hpp>
 
 #include "stf/core/files.h"
 #include "stf/core/h5io.h"
@@ -33,36 +31,6 @@ int interrupted_status() { return 128 + (interrupt_signal.load() ? interrupt_sig
 
 void stop_if_interrupted() {
   if (interrupted) throw Interrupted();
-}
-
-void check_config_syntax(int argc, char** argv) {
-  for (int i = 1; i < argc; ++i) {
-    std::string a = argv[i], path;
-    if (a == "--config" && i + 1 < argc) path = argv[i + 1];
-    else if (a.rfind("--config=", 0) == 0) path = a.substr(9);
-    else continue;
-    if (::access(path.c_str(), R_OK) != 0) fail("--config '" + path + "': " + std::strerror(errno));
-    struct stat st;
-    if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) continue;  // a pipe is read once, by CLI11
-    try {
-      (void)toml::parse(path);
-    } catch (const toml::syntax_error& e) {
-      // toml11's report: "[error] WHAT" on its first line, then the source with " N | " margins.
-      std::istringstream report(e.what());
-      std::string what, line, number;
-      std::getline(report, what);
-      if (what.rfind("[error] ", 0) == 0) what = what.substr(8);
-      while (number.empty() && std::getline(report, line)) {
-        std::size_t bar = line.find(" | ");
-        std::string head = bar == std::string::npos ? "" : line.substr(0, bar);
-        head.erase(0, head.find_first_not_of(' '));
-        if (!head.empty() && head.find_first_not_of("0123456789") == std::string::npos) number = head;
-      }
-      fail("--config '" + path + "'" + (number.empty() ? "" : ", line " + number) + ": not valid TOML: " + what);
-    } catch (const std::exception& e) {
-      fail("--config '" + path + "': " + e.what());
-    }
-  }
 }
 
 std::string tools_dir() {
@@ -297,6 +265,7 @@ AtomicOutput::AtomicOutput(std::string path, std::string option, const std::vect
     : path_(std::move(path)), option_(std::move(option)) {
   if (path_.empty()) fail(option_ + " must name an output file");
   refuse_same_file(path_, option_, keep);
+  refuse_same_file(path_, option_, {{config_file(), "--config"}});
   target_ = path_ == "-" ? path_ : follow_links(path_, option_);
   struct stat st;
   const bool exists = path_ == "-" || ::stat(target_.c_str(), &st) == 0;

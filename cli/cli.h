@@ -56,6 +56,9 @@ std::int64_t parse_count(const std::string& text, const std::string& option, std
 // Checks the TOML syntax of a --config file before CLI11 reads it (CLI11 would take a broken
 // line for an unknown key); fails with one line naming the file, the line and what is wrong.
 void check_config_syntax(int argc, char** argv);
+// The --config file of this command line ("" when none or not a regular file), set by
+// check_config_syntax: every AtomicOutput refuses to be it.
+std::string& config_file();
 
 // Folder of the Python drawing scripts: $STF_TOOLS_DIR, else the source tree's tools/.
 std::string tools_dir();
@@ -116,8 +119,8 @@ bool written_in_place(const std::string& path);
 // a full disk included. A device, a FIFO or "-" (standard output) is never replaced: commit()
 // copies the finished bytes into it. The constructor, which runs before any work, takes the
 // output's lock and refuses a folder, an unwritable place or file and a file that is one of
-// `keep` (the command's inputs and other outputs; the same file, not just the same name), with
-// one line naming `option`. The destructor removes the temporary file unless committed.
+// `keep` (the command's inputs and other outputs; the same file, not just the same name) or the
+// --config file, with one line naming `option`. The destructor removes the temporary file unless committed.
 class AtomicOutput {
  public:
   AtomicOutput(std::string path, std::string option, const std::vector<NamedFile>& keep = {});

@@ -53,6 +53,11 @@ scene::Scene render_scene(const RenderOptions& o) {
 
 }  // namespace
 
+std::vector<NamedFile> with(std::vector<NamedFile> files, const std::vector<NamedFile>& more) {
+  files.insert(files.end(), more.begin(), more.end());
+  return files;
+}
+
 scene::Settings render_pack_settings(double tolerance, const std::string& model) {
   scene::Settings s;
   s.tolerance = tolerance;
@@ -100,8 +105,9 @@ std::vector<PackEntry> read_pack_option(const std::string& path) {
   return entries;
 }
 
-RenderOutputs::RenderOutputs(const RenderOptions& o) : image(o.output, "-o", {{o.pack, "--pack"}}) {
-  std::vector<NamedFile> keep{{o.pack, "--pack"}, image.named()};
+RenderOutputs::RenderOutputs(const RenderOptions& o, std::vector<NamedFile> inputs)
+    : image(o.output, "-o", with({{o.pack, "--pack"}}, inputs)) {
+  std::vector<NamedFile> keep = with({{o.pack, "--pack"}, image.named()}, inputs);
   if (!o.exr.empty()) exr.emplace(o.exr, "--exr", keep), keep.push_back(exr->named());
   if (!o.png.empty()) png.emplace(o.png, "--png", keep), keep.push_back(png->named());
   if (!o.json.empty()) json.emplace(o.json, "--json", keep);

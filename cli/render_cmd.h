@@ -35,9 +35,10 @@ struct PackBuild {
   int spheres_computed = 0;
 };
 
-// Every output claimed before any work; none may be the pack or another output.
+// Every output claimed before any work; none may be the pack, one of `inputs` (the scene, its
+// meshes and environment map) or another output.
 struct RenderOutputs {
-  explicit RenderOutputs(const RenderOptions& o);
+  explicit RenderOutputs(const RenderOptions& o, std::vector<NamedFile> inputs = {});
   AtomicOutput image;
   std::optional<AtomicOutput> exr, png, json;
   // Writes the EXR and PNG of `image`, stages `json` and puts everything in place together.
@@ -56,6 +57,9 @@ std::vector<PackEntry> read_pack_option(const std::string& path);
 // The settings of the packs renders build: 4e6 paths per sphere on healpix:16, 45 alpha bins,
 // `model` (hvmf:auto unless --model), certified within `tolerance`.
 scene::Settings render_pack_settings(double tolerance, const std::string& model);
+
+// `files` and `more` in one list.
+std::vector<NamedFile> with(std::vector<NamedFile> files, const std::vector<NamedFile>& more);
 
 void run_scene_render(const RenderOptions& o, const CLI::App& cmd);
 

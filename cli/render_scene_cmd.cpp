@@ -75,6 +75,15 @@ std::string scene_stats(const render::Image& image, const PackBuild& build, cons
   return j.dump(2) + "\n";
 }
 
+// The files a scene render reads: no output may be one of them.
+std::vector<NamedFile> scene_inputs(const scene::RenderScene& sc) {
+  std::vector<NamedFile> inputs{{sc.path, "the scene"}};
+  if (!sc.light.environment.empty()) inputs.push_back({sc.light.environment, "light.environment"});
+  for (std::size_t i = 0; i < sc.objects.size(); ++i)
+    if (!sc.objects[i].mesh.empty()) inputs.push_back({sc.objects[i].mesh, fmt::format("objects[{}].mesh", i)});
+  return inputs;
+}
+
 bool any_spheres(const render::ScenePaths& paths, const scene::RenderScene& sc) {
   for (std::size_t i = 0; i < sc.objects.size(); ++i)
     for (int c = 0; c < 3; ++c)
@@ -92,7 +101,7 @@ void run_scene_render(const RenderOptions& o, const CLI::App& cmd) {
     fail(e.what());
   }
   render::ImageSettings s = image_settings(o, cmd, sc.camera.width, sc.camera.height);
-  RenderOutputs outputs(o);
+  RenderOutputs outputs(o, scene_inputs(sc));
   const render::FreeRadius method = o.free_radius == "query" ? render::FreeRadius::kQuery : render::FreeRadius::kGrid;
   std::unique_ptr<render::SceneGeometry> geometry;
   try {

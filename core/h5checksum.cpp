@@ -29,8 +29,6 @@ std::string block_line(std::uint64_t hash, std::uint64_t size) {
   return line;
 }
 
-std::atomic<int> readers{0};
-
 struct Fd {
   int fd;
   ~Fd() {
@@ -105,9 +103,5 @@ H5::H5File open_file(const std::string& path) {
   verify_checksum(path);
   return H5::H5File(path, H5F_ACC_RDONLY);
 }
-
-ReadingInput::ReadingInput() { ++readers; }
-ReadingInput::~ReadingInput() { --readers; }
-bool reading_input() { return readers.load() > 0; }
 
 }  // namespace stf::h5

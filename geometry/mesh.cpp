@@ -1,11 +1,9 @@
 #include "stf/geometry/mesh.h"
 
 #include <fmt/format.h>
-#include <tiny_obj_loader.h>
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 #include <stdexcept>
 #include <unordered_map>
 
@@ -24,16 +22,33 @@ Vec3 at_float_precision(const Vec3& v) { return {at_float_precision(v.x), at_flo
 
 }  // namespace
 
+namespace {
+
+// A position's hash, with -0 and +0 alike (as == has them).
+struct PositionHash {
+  std::size_t operator()(const Vec3& v) const {
+    const std::hash<double> h;
+    return h(v.x + 0.0) ^ (h(v.y + 0.0) * 0x9e3779b97f4a7c15ULL) ^ (h(v.z + 0.0) * 0xc2b2ae3d27d4eb4fULL);
+  }
+};
+struct SamePosition {
+  bool operator()(const Vec3& a, const Vec3& b) const { return a.x == b.x && a.y == b.y && a.z == b.z; }
+};
+
+}  // namespace
+
 TriangleMesh welded(const TriangleMesh& mesh) {
   TriangleMesh out;
-  std::map<std::array<double, 3>, std::uint32_t> index;
+  std::unordered_map<Vec3, std::uint32_t, PositionHash, SamePosition> index;
+  index.reserve(mesh.vertices.size());
   std::vector<std::uint32_t> renumber(mesh.vertices.size());
   for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
     const Vec3& v = mesh.vertices[i];
-    auto [it, added] = index.try_emplace({v.x, v.y, v.z}, std::uint32_t(out.vertices.size()));
+    auto [it, added] = index.try_emplace(v, std::uint32_t(out.vertices.size()));
     if (added) out.vertices.push_back(v);
     renumber[i] = it->second;
   }
+  out.triangles.reserve(mesh.triangles.size());
   for (const auto& t : mesh.triangles) out.triangles.push_back({renumber[t[0]], renumber[t[1]], renumber[t[2]]});
   return out;
 }
@@ -107,36 +122,6 @@ Bounds bounds_of(const TriangleMesh& mesh) {
     b.upper = {std::max(b.upper.x, v.x), std::max(b.upper.y, v.y), std::max(b.upper.z, v.z)};
   }
   return b;
-}
-
-TriangleMesh read_obj(const std::string& path) {
-  tinyobj::ObjReader reader;
-  tinyobj::ObjReaderConfig config;
-  config.triangulate = true;
-  config.vertex_color = false;
-  if (!reader.ParseFromFile(path, config)) {
-    std::string why = reader.Error();
-    while (!why.empty() && (why.back() == '\n' || why.back() == '\r')) why.pop_back();
-    std::replace(why.begin(), why.end(), '\n', ' ');
-    throw std::runtime_error(path + ": cannot be read as OBJ: " + (why.empty() ? "no reason given" : why));
-  }
-  TriangleMesh mesh;
-  const std::vector<tinyobj::real_t>& v = reader.GetAttrib().vertices;
-  for (std::size_t i = 0; i + 2 < v.size(); i += 3) mesh.vertices.push_back({v[i], v[i + 1], v[i + 2]});
-  for (const tinyobj::shape_t& shape : reader.GetShapes()) {
-    const std::vector<tinyobj::index_t>& idx = shape.mesh.indices;
-    for (std::size_t i = 0; i + 2 < idx.size(); i += 3) {
-      std::array<std::uint32_t, 3> t{};
-      for (std::size_t j = 0; j < 3; ++j) {
-        if (idx[i + j].vertex_index < 0 || std::size_t(idx[i + j].vertex_index) >= mesh.vertices.size())
-          throw std::runtime_error(fmt::format("{}: a face names vertex {}, of {}", path, idx[i + j].vertex_index + 1, mesh.vertices.size()));
-        t[j] = std::uint32_t(idx[i + j].vertex_index);
-      }
-      mesh.triangles.push_back(t);
-    }
-  }
-  if (mesh.triangles.empty()) throw std::runtime_error(path + ": holds no triangle");
-  return welded(mesh);
 }
 
 std::string obj_text(const TriangleMesh& mesh) {

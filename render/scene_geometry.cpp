@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "stf/core/reading_input.h"
 #include "stf/scene/scene_error.h"
 
 namespace stf::render {
@@ -17,17 +18,36 @@ using geometry::Bounds;
   throw scene::SceneError(s.path + ":" + std::to_string(line) + ": " + what);
 }
 
+// "objects[i]", with the mesh's file where it has one: a layout refusal may come from the mesh.
+std::string object_name(const scene::RenderScene& s, std::size_t i) {
+  const std::string mesh = s.objects[i].mesh;
+  return fmt::format("objects[{}]", i) + (mesh.empty() ? "" : " (" + mesh + ")");
+}
+
+// The first vertex placed beyond kLargestCoordinate, or "".
+std::string placement_error(const geometry::TriangleMesh& mesh) {
+  for (const Vec3& v : mesh.vertices)
+    if (!(std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)}) <= scene::kLargestCoordinate))
+      return fmt::format("scale and translate place a vertex at ({:g}, {:g}, {:g}), beyond +-{:g} (surfaces are traced in float)",
+                         v.x, v.y, v.z, scene::kLargestCoordinate);
+  return "";
+}
+
+// The object's mesh read, placed and checked as Embree will trace it (in float, where a
+// triangle may collapse).
 geometry::TriangleMesh load_mesh(const scene::RenderScene& s, std::size_t i) {
   const scene::ObjectSpec& o = s.objects[i];
   const std::string where = "objects[" + std::to_string(i) + "].mesh: ";
   geometry::TriangleMesh mesh;
   try {
-    mesh = geometry::read_obj(o.mesh);
+    mesh = geometry::placed(geometry::read_obj(o.mesh), o.scale, o.translate);
   } catch (const std::runtime_error& e) {
     refuse(s, o.line, where + e.what());
   }
-  if (const std::string why = geometry::mesh_error(mesh); !why.empty()) refuse(s, o.line, where + o.mesh + ": " + why);
-  return geometry::placed(geometry::oriented_outward(std::move(mesh)), o.scale, o.translate);
+  std::string why = placement_error(mesh);
+  if (why.empty()) why = geometry::mesh_error(mesh);
+  if (!why.empty()) refuse(s, o.line, where + o.mesh + ": " + why);
+  return geometry::oriented_outward(std::move(mesh));
 }
 
 bool overlap(const Bounds& a, const Bounds& b) {
@@ -52,6 +72,22 @@ double sphere_hit(const Vec3& o, const Vec3& d, const Vec3& c, double r) {
 
 SceneGeometry::SceneGeometry(const scene::RenderScene& s, FreeRadius method, int grid_cells, const RunContext& run)
     : method_(method), ground_(s.ground.present), ground_height_(s.ground.height) {
+  place_objects(s);
+  check_layout(s);
+  for (Object& o : objects_) {
+    if (o.sphere) continue;
+    o.grid = std::make_unique<geometry::DistanceGrid>(*boundary_, o.bounds, grid_cells, run);
+    if (run.cancelled()) return;  // a partial grid: the caller stops
+    o.inradius = o.grid->deepest(*boundary_, o.mesh);
+  }
+}
+
+SceneGeometry::~SceneGeometry() = default;
+
+void SceneGeometry::place_objects(const scene::RenderScene& s) {
+  // Reading millions of triangles and building Embree's tree take seconds: until they are done
+  // a first Ctrl-C ends the command at once (nothing is written yet). The grids poll for it.
+  const h5::ReadingInput reading;
   std::vector<geometry::TriangleMesh> meshes;
   for (std::size_t i = 0; i < s.objects.size(); ++i) {
     const scene::ObjectSpec& o = s.objects[i];
@@ -69,27 +105,19 @@ SceneGeometry::SceneGeometry(const scene::RenderScene& s, FreeRadius method, int
     objects_.push_back(std::move(obj));
   }
   boundary_ = std::make_unique<geometry::Boundary>(std::move(meshes));
-  check_layout(s);
-  for (Object& o : objects_) {
-    if (o.sphere) continue;
-    o.grid = std::make_unique<geometry::DistanceGrid>(*boundary_, o.bounds, grid_cells, run);
-    o.inradius = o.grid->deepest(*boundary_, o.mesh);
-  }
 }
-
-SceneGeometry::~SceneGeometry() = default;
 
 void SceneGeometry::check_layout(const scene::RenderScene& s) const {
   for (std::size_t i = 0; i < objects_.size(); ++i) {
     const Bounds& b = objects_[i].bounds;
     for (std::size_t j = 0; j < i; ++j)
       if (overlap(b, objects_[j].bounds))
-        refuse(s, s.objects[i].line, fmt::format("objects[{}]: its bounds overlap those of objects[{}]; media must not overlap", i, j));
+        refuse(s, s.objects[i].line, fmt::format("{}: its bounds overlap those of {}; media must not overlap", object_name(s, i), object_name(s, j)));
     if (ground_ && b.lower.y < ground_height_)
-      refuse(s, s.objects[i].line, fmt::format("objects[{}]: reaches below the ground (y = {:g})", i, ground_height_));
+      refuse(s, s.objects[i].line, fmt::format("{}: reaches below the ground (y = {:g})", object_name(s, i), ground_height_));
     if (contains(b, s.camera.position) && (objects_[i].sphere ? length(s.camera.position - objects_[i].centre) < objects_[i].radius
                                                               : boundary_->inside(s.camera.position, objects_[i].mesh)))
-      refuse(s, s.objects[i].line, fmt::format("objects[{}]: the camera is inside it", i));
+      refuse(s, s.objects[i].line, fmt::format("{}: the camera is inside it", object_name(s, i)));
   }
   if (ground_ && s.camera.position.y <= ground_height_) refuse(s, 1, "camera.position: below the ground");
 }

@@ -1,6 +1,11 @@
 #include "stf/scene/render_scene.h"
 
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <set>
 
@@ -16,6 +21,23 @@ Vec3 vec3(const toml::value& v, const std::string& name) {
   const Vec3 out{number(a[0], name), number(a[1], name), number(a[2], name)};
   expect(std::isfinite(out.x) && std::isfinite(out.y) && std::isfinite(out.z), v, name + ": must be finite");
   return out;
+}
+
+// A point of the scene: within kLargestCoordinate of the origin in each coordinate.
+Vec3 position(const toml::value& v, const std::string& name) {
+  const Vec3 p = vec3(v, name);
+  expect(std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}) <= kLargestCoordinate, v,
+         fmt::format("{}: a coordinate beyond +-{:g} (surfaces are traced in float)", name, kLargestCoordinate));
+  return p;
+}
+
+// A direction of any finite length but 0, as a unit vector: scaled by its largest component
+// first, so that neither 1e300 overflows nor 1e-200 underflows.
+Vec3 direction(const toml::value& v, const std::string& name) {
+  const Vec3 d = vec3(v, name);
+  const double largest = std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)});
+  expect(largest > 0, v, name + ": must not be 0");
+  return normalize((1 / largest) * d);
 }
 
 // One number for all three channels, or [r, g, b]; each in [low, high] (closed unless
@@ -43,26 +65,38 @@ double bounded(const toml::value& t, const std::string& key, const std::string& 
 CameraSpec read_camera(const toml::value& t) {
   check_keys(t, "camera.", {"position", "look_at", "up", "fov", "width", "height"});
   CameraSpec c;
-  if (t.contains("position")) c.position = vec3(t.at("position"), "camera.position");
-  if (t.contains("look_at")) c.look_at = vec3(t.at("look_at"), "camera.look_at");
-  if (t.contains("up")) c.up = vec3(t.at("up"), "camera.up");
+  if (t.contains("position")) c.position = position(t.at("position"), "camera.position");
+  if (t.contains("look_at")) c.look_at = position(t.at("look_at"), "camera.look_at");
+  c.up = t.contains("up") ? direction(t.at("up"), "camera.up") : normalize(c.up);
   if (t.contains("fov")) c.fov = bounded(t, "fov", "camera.", 0.1, 170);
-  if (t.contains("width")) c.width = int(bounded(t, "width", "camera.", 1, 8192));
-  if (t.contains("height")) c.height = int(bounded(t, "height", "camera.", 1, 8192));
+  if (t.contains("width")) c.width = int(whole_number(t.at("width"), "camera.width", 1, 8192));
+  if (t.contains("height")) c.height = int(whole_number(t.at("height"), "camera.height", 1, 8192));
   const Vec3 view = c.look_at - c.position;
   expect(length(view) > 0, t, "camera: position and look_at must differ");
-  expect(length(cross(view, c.up)) > 1e-9 * length(view) * length(c.up), t, "camera.up: must not be parallel to the view");
+  const double largest = std::max({std::abs(view.x), std::abs(view.y), std::abs(view.z)});
+  expect(length(cross(normalize((1 / largest) * view), c.up)) > 1e-9, t.contains("up") ? t.at("up") : t,
+         "camera.up: must not be parallel to the view (look_at - position)");
   return c;
+}
+
+// An input file named by `v`, resolved against the scene's folder: one that exists and is a
+// regular file (a FIFO would block the read, a device never end it).
+std::string input_file(const toml::value& v, const std::string& name, const std::string& scene_path) {
+  const std::string file = (std::filesystem::path(scene_path).parent_path() / text(v, name)).string();
+  struct stat st;
+  if (::stat(file.c_str(), &st) != 0)
+    error_at(v, name + (errno == ENOENT ? ": no such file: " + file : ": " + file + ": " + std::strerror(errno)));
+  expect(!S_ISDIR(st.st_mode), v, name + ": " + file + " is a folder, not a file");
+  expect(S_ISREG(st.st_mode), v, name + ": " + file + ": not a regular file (a FIFO, socket or device)");
+  return file;
 }
 
 // The environment map's file, resolved against the scene's folder.
 std::string environment_file(const toml::value& t, const std::string& scene_path) {
-  const std::filesystem::path file =
-      std::filesystem::path(scene_path).parent_path() / text(t.at("environment"), "light.environment");
-  expect(std::filesystem::is_regular_file(file), t.at("environment"), "light.environment: no such file: " + file.string());
+  const std::string file = input_file(t.at("environment"), "light.environment", scene_path);
   expect(!t.contains("sky"), t.contains("sky") ? t.at("sky") : t,
          "light.sky: the environment map is the sky; give one of sky and environment");
-  return file.string();
+  return file;
 }
 
 LightSpec read_light(const toml::value& t, const std::string& scene_path) {
@@ -74,9 +108,8 @@ LightSpec read_light(const toml::value& t, const std::string& scene_path) {
     l.environment_scale = bounded(t, "environment_scale", "light.", 0, 1e9);
   }
   if (t.contains("sky")) l.sky = rgb(t.at("sky"), "light.sky", 0, 1e6);
-  if (t.contains("sun_direction")) l.sun_direction = vec3(t.at("sun_direction"), "light.sun_direction");
-  expect(length(l.sun_direction) > 0, t, "light.sun_direction: must not be 0");
-  l.sun_direction = normalize(l.sun_direction);
+  l.sun_direction = t.contains("sun_direction") ? direction(t.at("sun_direction"), "light.sun_direction")
+                                                : normalize(l.sun_direction);
   if (t.contains("sun_radiance")) l.sun = rgb(t.at("sun_radiance"), "light.sun_radiance", 0, 1e9);
   if (t.contains("sun_angle")) l.sun_angle = bounded(t, "sun_angle", "light.", 0.05, 45);
   return l;
@@ -84,10 +117,10 @@ LightSpec read_light(const toml::value& t, const std::string& scene_path) {
 
 MediumSpec read_medium(const toml::value& t, std::size_t i) {
   const std::string where = "media[" + std::to_string(i) + "].";
-  expect(t.is_table(), t, where + ": expected a table");
+  expect(t.is_table(), t, "media[" + std::to_string(i) + "]: expected a table");
   check_keys(t, where, {"name", "sigma_s", "sigma_a", "g", "preset", "density"});
   MediumSpec m;
-  m.name = text(require(t, "name", where), where + "name");
+  m.name = name_text(require(t, "name", where), where + "name");
   if (t.contains("preset")) {
     expect(!t.contains("sigma_s") && !t.contains("sigma_a") && !t.contains("g"), t.at("preset"),
            where + "preset: give either a preset or sigma_s, sigma_a and g");
@@ -110,23 +143,21 @@ MediumSpec read_medium(const toml::value& t, std::size_t i) {
 }
 
 ObjectSpec read_object(const toml::value& t, std::size_t i, const RenderScene& s) {
-  const std::string where = "objects[" + std::to_string(i) + "].";
-  expect(t.is_table(), t, where + ": expected a table");
+  const std::string where = "objects[" + std::to_string(i) + "].", object = "objects[" + std::to_string(i) + "]";
+  expect(t.is_table(), t, object + ": expected a table");
   check_keys(t, where, {"mesh", "shape", "radius", "scale", "translate", "medium", "ior"});
   ObjectSpec o;
   o.line = int(t.location().line());
-  expect(t.contains("mesh") != t.contains("shape"), t, where + ": give either mesh = \"FILE.obj\" or shape = \"sphere\"");
+  expect(t.contains("mesh") != t.contains("shape"), t, object + ": give either mesh = \"FILE.obj\" or shape = \"sphere\"");
   if (t.contains("mesh")) {
-    const std::filesystem::path file = std::filesystem::path(s.path).parent_path() / text(t.at("mesh"), where + "mesh");
-    expect(std::filesystem::is_regular_file(file), t.at("mesh"), where + "mesh: no such file: " + file.string());
-    o.mesh = file.string();
+    o.mesh = input_file(t.at("mesh"), where + "mesh", s.path);
     expect(!t.contains("radius"), t.contains("radius") ? t.at("radius") : t, where + "radius: for shape = \"sphere\" only");
   } else {
     expect(text(t.at("shape"), where + "shape") == "sphere", t.at("shape"), where + "shape: only \"sphere\" is known");
     if (t.contains("radius")) o.radius = bounded(t, "radius", where, 1e-6, 1e6);
   }
   if (t.contains("scale")) o.scale = bounded(t, "scale", where, 1e-6, 1e6);
-  if (t.contains("translate")) o.translate = vec3(t.at("translate"), where + "translate");
+  if (t.contains("translate")) o.translate = position(t.at("translate"), where + "translate");
   if (t.contains("ior")) o.ior = bounded(t, "ior", where, 1, 4);
   const std::string medium = text(require(t, "medium", where), where + "medium");
   o.medium = -1;

@@ -75,8 +75,7 @@ Medium read_medium(const toml::value& t, std::size_t index) {
   check_keys(t, where, {"name", "sigma_s", "sigma_a", "g", "radius_min", "radius_max", "size"});
   Medium m;
   m.line = int(t.location().line());
-  m.name = text(require(t, "name", where), where + "name");
-  expect(!m.name.empty(), t.at("name"), where + "name: must not be empty");
+  m.name = name_text(require(t, "name", where), where + "name");
   m.sigma_s = number(require(t, "sigma_s", where), where + "sigma_s");
   expect(m.sigma_s >= 0 && std::isfinite(m.sigma_s), t.at("sigma_s"), where + "sigma_s: must be a finite number >= 0");
   m.sigma_a = number(require(t, "sigma_a", where), where + "sigma_a");

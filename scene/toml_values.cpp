@@ -1,12 +1,19 @@
 #include "toml_values.h"
 
+#include <cmath>
+#include <sstream>
 #include <stdexcept>
+
+#include "stf/scene/toml_text.h"
 
 namespace stf::scene {
 
 toml::value parse_toml(const std::string& path) {
+  const std::string text = read_toml_text(path);
+  check_toml_nesting(text, path);
+  std::istringstream stream(text);
   try {
-    return toml::parse(path);
+    return toml::parse(stream, path);
   } catch (const toml::syntax_error& e) {
     // toml11's report spans lines: the problem first, then " --> file" and " N | source".
     std::string what = e.what(), first = what.substr(0, what.find('\n')), line = "1";
@@ -58,9 +65,29 @@ double number(const toml::value& v, const std::string& name) {
   error_at(v, name + ": expected a number");
 }
 
+// Any string of a scene: printable, so that no message quoting it breaks its line (a path with
+// a line break or a NUL names no file a user meant).
 std::string text(const toml::value& v, const std::string& name) {
   if (!v.is_string()) error_at(v, name + ": expected a string");
-  return v.as_string().str;
+  const std::string& s = v.as_string().str;
+  for (std::size_t i = 0; i < s.size(); ++i)
+    expect(static_cast<unsigned char>(s[i]) >= 0x20 && s[i] != 0x7f, v,
+           fmt::format("{}: holds a control character (byte {} is {:#04x}); strings here are printable", name, i + 1,
+                       static_cast<unsigned char>(s[i])));
+  return s;
+}
+
+std::string name_text(const toml::value& v, const std::string& name) {
+  const std::string s = text(v, name);
+  expect(!s.empty(), v, name + ": must not be empty");
+  return s;
+}
+
+double whole_number(const toml::value& v, const std::string& name, double low, double high) {
+  const double x = number(v, name);
+  expect(x == std::floor(x) && x >= low && x <= high, v,
+         fmt::format("{}: must be a whole number in {:g}..{:g}, got {}", name, low, high, toml::format(v)));
+  return x;
 }
 
 void expect(bool ok, const toml::value& v, const std::string& message) {

@@ -20,7 +20,12 @@ toml::value parse_toml(const std::string& path);
 void check_keys(const toml::value& table, const std::string& where, const std::set<std::string>& allowed);
 const toml::value& require(const toml::value& table, const std::string& key, const std::string& where);
 double number(const toml::value& v, const std::string& name);
+// A string of printable characters (no NUL, no line break).
 std::string text(const toml::value& v, const std::string& name);
+// A name (of a medium): a non-empty text().
+std::string name_text(const toml::value& v, const std::string& name);
+// A number that is a whole number in [low, high] (1.5 is refused, 2.0 taken).
+double whole_number(const toml::value& v, const std::string& name, double low, double high);
 void expect(bool ok, const toml::value& v, const std::string& message);
 
 }  // namespace stf::scene

@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 packages=(cmake g++ make pkg-config libhdf5-dev libcli11-dev wcslib-dev libhealpix-cxx-dev
-          libceres-dev libeigen3-dev libxxhash-dev nlohmann-json3-dev libfmt-dev libopenimageio-dev libembree-dev libtinyobjloader-dev libtoml11-dev libgtest-dev libbenchmark-dev python3-matplotlib python3-h5py
+          libceres-dev libeigen3-dev libxxhash-dev nlohmann-json3-dev libfmt-dev libopenimageio-dev libembree-dev libtoml11-dev libgtest-dev libbenchmark-dev python3-matplotlib python3-h5py
           python3-numpy openmpi-bin libopenmpi-dev pybind11-dev python3-dev python3-healpy)
 missing=()
 for p in "${packages[@]}"; do

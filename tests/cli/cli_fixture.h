@@ -92,8 +92,9 @@ inline bool have_mpi() {
 #endif
 }
 
-// Runs stf with `args`, sends SIGINT after `ms` milliseconds; returns the exit status.
-inline int interrupt_after(std::vector<std::string> args, int ms) {
+// Runs stf with `args`, sends SIGINT after `ms` milliseconds; returns the exit status, and in
+// `seconds_to_exit` (when given) how long the process took to end after the signal.
+inline int interrupt_after(std::vector<std::string> args, int ms, double* seconds_to_exit = nullptr) {
   pid_t pid = ::fork();
   if (pid == 0) {
     std::vector<char*> argv = {const_cast<char*>(STF_BINARY)};
@@ -104,8 +105,10 @@ inline int interrupt_after(std::vector<std::string> args, int ms) {
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(ms));
   ::kill(pid, SIGINT);
+  const auto sent = std::chrono::steady_clock::now();
   int status = 0;
   ::waitpid(pid, &status, 0);
+  if (seconds_to_exit) *seconds_to_exit = std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count();
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 

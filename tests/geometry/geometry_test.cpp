@@ -3,6 +3,7 @@
 // agree with brute force over every triangle; the free radius (exact query and distance grid)
 // is never above the true distance, on convex, concave and thin meshes.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -10,6 +11,7 @@
 #include <fstream>
 #include <random>
 #include <sstream>
+#include <tuple>
 
 #include "stf/geometry/boundary.h"
 #include "stf/geometry/distance_grid.h"
@@ -152,6 +154,94 @@ TEST(Mesh, FilesThatAreNoMeshesAreRefusedNamingTheFile) {
     }
   }
   EXPECT_THROW(read_obj((dir / "missing.obj").string()), std::runtime_error);
+  fs::remove_all(dir);
+}
+
+// The reader's verdict on `text` as an OBJ file: "" when read, else its message.
+std::string obj_verdict(const std::string& text, TriangleMesh* mesh = nullptr) {
+  const fs::path file = fs::temp_directory_path() / ("stf-obj-" + std::to_string(::getpid()) + ".obj");
+  std::ofstream(file.string(), std::ios::binary) << text;
+  std::string why;
+  try {
+    const TriangleMesh m = read_obj(file.string());
+    if (mesh) *mesh = m;
+  } catch (const std::runtime_error& e) {
+    why = e.what();
+  }
+  fs::remove(file);
+  return why;
+}
+
+const std::string kTetra = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n";
+
+// Each statement the reader cannot read exactly is refused naming the file, its line and what
+// is wrong; nothing is read as zero, wrapped or dropped.
+TEST(Obj, EveryMisreadableStatementIsRefusedByLine) {
+  const std::vector<std::tuple<std::string, int, std::string>> cases = {
+      {"v nan 0 0\n", 1, "not finite"},
+      {"v 0 inf 0\n", 1, "not finite"},
+      {"v x y z\n", 1, "'x' is not a number"},
+      {"v 0 0\n", 1, "three numbers"},
+      {"v 0 0 0 0 0\n", 1, "three numbers"},
+      {"v 1e39 0 0\n", 1, "range of float"},
+      {"v 1e400 0 0\n", 1, "out of range"},
+      {"v 0x1 0 0\n", 1, "not a number"},
+      {kTetra + "f 1 2 99999999999999999999\n", 5, "out of range"},
+      {kTetra + "f 1 2 5\n", 5, "names vertex 5, but 4"},
+      {kTetra + "f 1 2 0\n", 5, "count from 1"},
+      {kTetra + "f 1 2 -5\n", 5, "names vertex -5"},
+      {kTetra + "f 1 2 3 999999\n", 5, "names vertex 999999"},
+      {kTetra + "f 1 2\n", 5, "at least three"},
+      {kTetra + "f 1 2 3.5\n", 5, "not a vertex index"},
+      {kTetra + "f 1/a 2 3\n", 5, "not a face corner"},
+      {"v 0 0 0\nv 2 0 0\nv 1 0.2 0\nv 1 2 0\nf 1 2 3 4\n", 5, "not convex"},
+      {kTetra + "curv 0 1 1 2\n", 5, "free-form"},
+      {std::string("v 0 0 0\nv 1 0 0\0\n", 19), 2, "NUL"},
+  };
+  for (const auto& [text, line, what] : cases) {
+    const std::string why = obj_verdict(text);
+    EXPECT_NE(why.find("stf-obj-"), std::string::npos) << text << " -> " << why;
+    EXPECT_NE(why.find(".obj:" + std::to_string(line) + ": "), std::string::npos) << text << " -> " << why;
+    EXPECT_NE(why.find(what), std::string::npos) << text << " -> " << why;
+    EXPECT_EQ(why.find('\n'), std::string::npos) << why;
+  }
+}
+
+// What a mesh may carry beside its surface is read past; negative and slashed corners name the
+// same vertices as plain ones; a convex quad becomes two triangles; CRLF ends lines too.
+TEST(Obj, EverythingElseIsReadAsTheSameSurface) {
+  TriangleMesh plain, decorated;
+  ASSERT_EQ(obj_verdict(kTetra + "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n", &plain), "");
+  const std::string text =
+      "# a comment\r\nmtllib /dev/zero missing.mtl\r\no tetra\r\ng side\r\ns 1\r\nusemtl stone\r\n"
+      "v 0 0 0 1\r\nv 1 0 0 0.5 0.5 0.5\r\nv 0 1 0\r\nv 0 0 1  # the apex\r\nvt 0 0\r\nvn 0 0 1\r\n"
+      "f -4/1 -2/1/1 -3//1\r\nf 1 2 4\r\nf 1 4 3\r\nf 2 3 4\r\nl 1 2\r\n";
+  ASSERT_EQ(obj_verdict(text, &decorated), "");
+  EXPECT_EQ(decorated.vertices.size(), plain.vertices.size());
+  EXPECT_EQ(decorated.triangles, plain.triangles);
+  TriangleMesh quad;
+  ASSERT_EQ(obj_verdict("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n", &quad), "");
+  EXPECT_EQ(quad.triangles.size(), 2u);
+}
+
+// A mesh file that is a FIFO, a folder or a device is refused as such before it is opened (a
+// FIFO would block), and an mtllib naming a FIFO is never opened.
+TEST(Obj, FilesThatAreNotRegularAreRefusedAsSuch) {
+  const fs::path dir = fs::temp_directory_path() / ("stf-obj-fifo-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const std::string fifo = (dir / "pipe").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  for (const std::string& path : {fifo, dir.string(), std::string("/dev/zero")}) {
+    try {
+      read_obj(path);
+      ADD_FAILURE() << path << " was read";
+    } catch (const std::runtime_error& e) {
+      const std::string why = e.what();
+      EXPECT_TRUE(why.find("not a regular file") != std::string::npos || why.find("is a folder") != std::string::npos) << why;
+    }
+  }
+  std::ofstream((dir / "m.obj").string()) << "mtllib pipe\n" << kTetra << "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+  EXPECT_EQ(read_obj((dir / "m.obj").string()).triangles.size(), 4u);
   fs::remove_all(dir);
 }
 

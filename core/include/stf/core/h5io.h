@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "stf/core/reading_input.h"
+
 namespace stf::h5 {
 
 inline constexpr double kMaxFinite = std::numeric_limits<double>::max();
@@ -107,23 +109,11 @@ H5::H5File open_file(const std::string& path);
 // Writes the checksum of an HDF5 file image with a user block of kUserBlockBytes into it.
 void stamp_checksum(std::string& image);
 
-// True while this process is inside read_file: reading inputs, having written nothing, so a
-// signal may end it at once (a library stuck in a malformed file cannot hold it).
-bool reading_input();
-
-// read(file) on `path` opened read-only, any failure rethrown in one line naming the file.
-// While it runs, reading_input() is true.
-class ReadingInput {
- public:
-  ReadingInput();
-  ~ReadingInput();
-  ReadingInput(const ReadingInput&) = delete;
-  ReadingInput& operator=(const ReadingInput&) = delete;
-};
-
 // The object a reader is at, for the message of an HDF5 error that no check caught.
 const std::string& current_object();
 
+// read(file) on `path` opened read-only, any failure rethrown in one line naming the file.
+// While it runs, reading_input() is true (stf/core/reading_input.h).
 template <typename Read>
 auto read_file(const std::string& path, Read read) {
   ReadingInput reading;

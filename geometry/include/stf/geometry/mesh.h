@@ -25,9 +25,14 @@ struct Bounds {
 };
 Bounds bounds_of(const TriangleMesh& mesh);
 
-// Reads an OBJ file (faces of more than three vertices fanned into triangles; vertices at the
-// same position joined). Throws std::runtime_error naming the file when it cannot be read or
-// holds no triangle.
+// Reads an OBJ file strictly (obj.cpp): every `v` has three finite numbers within float range
+// (a weight or an RGB colour after them is allowed and ignored), every face corner names a
+// vertex defined above it (from 1, or negative from the last), faces of more than three
+// vertices are fanned into triangles when convex and refused otherwise, free-form geometry is
+// refused, and every other statement (vt, vn, o, g, s, l, mtllib, usemtl, ...) is skipped
+// without opening any file it names. Vertices at the same position are joined. Throws
+// std::runtime_error "FILE:LINE: what" (or "FILE: what") when the file is not a regular file,
+// cannot be read, has a statement it cannot read exactly or holds no triangle.
 TriangleMesh read_obj(const std::string& path);
 
 // The mesh with vertices at the same position joined (an OBJ may repeat a position per face or

@@ -62,6 +62,7 @@ class SceneGeometry {
     double inradius = 0;
     std::unique_ptr<geometry::DistanceGrid> grid;
   };
+  void place_objects(const scene::RenderScene& scene);
   void check_layout(const scene::RenderScene& scene) const;
   std::vector<Object> objects_;
   std::vector<int> object_of_mesh_;

@@ -12,8 +12,13 @@
 
 namespace stf::scene {
 
+// The largest coordinate a scene may place a point at (camera, translations, mesh vertices after
+// placement): Embree traces meshes in float (at 1e9 its spacing is 64 units) and drops bounds
+// beyond about 1.8e18 altogether, so that a mesh there would vanish from the image.
+inline constexpr double kLargestCoordinate = 1e9;
+
 struct CameraSpec {
-  Vec3 position{0, 0, 3}, look_at{0, 0, 0}, up{0, 1, 0};
+  Vec3 position{0, 0, 3}, look_at{0, 0, 0}, up{0, 1, 0};  // up: unit after reading
   double fov = 30;  // vertical, degrees
   int width = 256, height = 256;
 };
