@@ -58,6 +58,12 @@ void write_scene_image(AtomicOutput& out, const render::Image& image, const Rend
   out.stage(memory.bytes());
 }
 
+nlohmann::ordered_json rays_by_kind(const render::Image& image) {
+  nlohmann::ordered_json j;
+  for (int k = 0; k < render::kRayKinds; ++k) j[render::kRayKindNames[k]] = image.rays_by[k];
+  return j;
+}
+
 std::string scene_stats(const render::Image& image, const PackBuild& build, const render::SceneGeometry& geometry) {
   nlohmann::ordered_json j = {{"seconds", image.seconds},
                               {"precompute_seconds", build.seconds},
@@ -69,6 +75,8 @@ std::string scene_stats(const render::Image& image, const PackBuild& build, cons
                               {"shadow_rays", image.shadow_rays},
                               {"rays", image.rays},
                               {"ideal_collisions", image.ideal_collisions},
+                              {"once_scattered_exits", image.once_scattered_exits},
+                              {"rays_by_kind", rays_by_kind(image)},
                               {"free_radius", geometry.method() == render::FreeRadius::kGrid ? "grid" : "query"},
                               {"grid_bytes", geometry.grid_bytes()},
                               {"mean_radiance", {image.mean_radiance(0), image.mean_radiance(1), image.mean_radiance(2)}}};

@@ -52,9 +52,12 @@ Image render_pixels(const ImageSettings& s, int channels, Pixel pixel) {
         done.fetch_add(1);
       },
       run.progress ? std::function<void()>(told) : std::function<void()>(), std::chrono::milliseconds(200));
-  for (const PathCounters& c : counters)  // integer sums
-    image.collisions += c.collisions, image.strides += c.strides, image.distance_queries += c.distance_queries,
-        image.shadow_rays += c.shadow_rays, image.rays += c.rays, image.ideal_collisions += c.ideal_collisions;
+  for (const PathCounters& c : counters) {  // integer sums
+    image.collisions += c.collisions, image.strides += c.strides, image.distance_queries += c.distance_queries;
+    image.shadow_rays += c.shadow_rays, image.rays += c.rays, image.ideal_collisions += c.ideal_collisions;
+    image.once_scattered_exits += c.once_scattered_exits;
+    for (int k = 0; k < kRayKinds; ++k) image.rays_by[k] += c.rays_by[k];
+  }
   image.paths = done.load() * s.spp;
   image.seconds = seconds_since(start);
   if (!run.cancelled()) run.tell("", image.paths, pixels * s.spp);

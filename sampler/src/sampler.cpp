@@ -152,25 +152,49 @@ ExitSample ShellSampler::sample(double u0, double u1, double u2, double u3) cons
   return s;
 }
 
+// The bin of `point` (unit sphere, local frame) and `direction` in the point's x-z frame (the
+// azimuth beta turned back).
+int ShellSampler::exit_frame(const Vec3& point, const Vec3& direction, Vec3& local) const {
+  const double rho = std::sqrt(point.x * point.x + point.y * point.y);
+  const double cb = rho > 0 ? point.x / rho : 1, sb = rho > 0 ? point.y / rho : 0;
+  local = rotate_z(direction, cb, -sb);
+  return alpha_bin_of(std::clamp(point.z, -1.0, 1.0));
+}
+
 double ShellSampler::pdf(const Vec3& point, const Vec3& direction) const {
-  int bin = alpha_bin_of(std::clamp(point.z, -1.0, 1.0));
-  double rho = std::sqrt(point.x * point.x + point.y * point.y);
-  double cb = rho > 0 ? point.x / rho : 1, sb = rho > 0 ? point.y / rho : 0;
-  Vec3 local = rotate_z(direction, cb, -sb);
+  Vec3 local;
+  const int bin = exit_frame(point, direction, local);
   return smooth_pdf(bin, point.z, local);
+}
+
+double ShellSampler::exit_direction_pdf(const Vec3& point, const Vec3& direction) const {
+  Vec3 local;
+  const int bin = exit_frame(point, direction, local);
+  const double c0 = cos_edges_[bin], c1 = cos_edges_[bin + 1];
+  return exit_direction_pdf(bin, point.z, std::clamp((c0 - point.z) / (c0 - c1), 0.0, 1.0), local);
+}
+
+double ShellSampler::exit_direction_pdf_world(const Vec3& position, const Vec3& direction, double radius,
+                                              const Vec3& exit_point, const Vec3& exit_direction) const {
+  const Frame f = Frame::around(direction);
+  return exit_direction_pdf(f.to_local((exit_point - position) / radius), f.to_local(exit_direction));
 }
 
 double ShellSampler::smooth_pdf(int bin, double cos_alpha, const Vec3& local) const {
   const double c0 = cos_edges_[bin], c1 = cos_edges_[bin + 1];
   const double u = std::clamp((c0 - cos_alpha) / (c0 - c1), 0.0, 1.0);
   const double point = model_.smooth_probability(bin) / (2 * kPi * (c0 - c1)) * tilt_density(model_.tilt(bin), u);
+  return point * exit_direction_pdf(bin, cos_alpha, u, local);
+}
+
+double ShellSampler::exit_direction_pdf(int bin, double cos_alpha, double u, const Vec3& local) const {
   int blend_bins[2 * StfModel::kMaxBlend + 1];
   double weights[2 * StfModel::kMaxBlend + 1];
   const int n = model_.blend_weights(bin, u, blend_bins, weights);
   double direction = 0;
   if (model_.alpha_turn.empty() && !model_.lifted) {
     for (int k = 0; k < n; ++k) direction += weights[k] * direction_pdf(blend_bins[k], local);
-    return point * direction;
+    return direction;
   }
   // Each blended bin's density turned to this exit angle (StfModel::alpha_turn), its lifted lobes
   // about the exit normal turned back with it.
@@ -180,7 +204,7 @@ double ShellSampler::smooth_pdf(int bin, double cos_alpha, const Vec3& local) co
     direction += weights[k] * direction_pdf(blend_bins[k], model_.alpha_turn.empty() ? local : turn_about_y(local, -turn),
                                             lift_normal(alpha, turn));
   }
-  return point * direction;
+  return direction;
 }
 
 WorldExit ShellSampler::to_world(const Vec3& position, const Vec3& direction, double radius,

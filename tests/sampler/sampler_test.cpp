@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <utility>
 
 #include "chi2.h"
 #include "stf/core/rng.h"
@@ -223,6 +224,79 @@ TEST(Sampler, PdfIntegratesToOne) {
     }
     // The smooth part's density integrates to its probability; the delta holds the rest.
     EXPECT_NEAR(total, 1 - model.uncollided_fraction, 1e-3) << (model.kind == ModelKind::kVmf ? "vmf" : "sh");
+  }
+}
+
+// Every kind of model a stride's exit can come from.
+std::vector<std::pair<std::string, StfModel>> exit_models() {
+  return {{"vmf", test::make_vmf_model()},
+          {"sh", test::make_sh_model()},
+          {"hemispherical", hemispherical(test::make_vmf_model())},
+          {"lifted", lifted(test::make_vmf_model())},
+          {"blended tilted", blended(tilted(test::make_vmf_model()))},
+          {"turned", turned(test::make_vmf_model())},
+          {"lifted turned blended", blended(turned(lifted(test::make_vmf_model())))},
+          {"blended sh", blended(test::make_sh_model())}};
+}
+
+// The exit's direction density (what next-event estimation at a stride's exit weighs by) is a
+// density of directions at every exit point: it integrates to 1.
+TEST(Sampler, ExitDirectionDensityIntegratesToOneAtEveryExitPoint) {
+  for (const auto& [name, model] : exit_models()) {
+    ShellSampler s(model);
+    for (double alpha : {0.1, 0.7, 1.5, 2.4, 3.0}) {
+      const Vec3 y{std::sin(alpha) * std::cos(1.3), std::sin(alpha) * std::sin(1.3), std::cos(alpha)};
+      // Midpoints in polar angle about y (even in angle near the pole, where lifted and sharp
+      // lobes peak; a lifted density's horizon about y falls between slices).
+      const Frame f = Frame::around(y);
+      const int ntheta = 512, nphi = 1024;
+      double total = 0;
+      for (int k = 0; k < ntheta; ++k) {
+        const double theta = kPi * (k + 0.5) / ntheta, st = std::sin(theta), ct = std::cos(theta);
+        for (int l = 0; l < nphi; ++l) {
+          const double phi = 2 * kPi * (l + 0.5) / nphi;
+          total += st * s.exit_direction_pdf(y, f.to_world({st * std::cos(phi), st * std::sin(phi), ct}));
+        }
+      }
+      EXPECT_NEAR(total * kPi / ntheta * 2 * kPi / nphi, 1, 1e-3) << name << " at alpha " << alpha;
+    }
+  }
+}
+
+// The stride form's draw at one exit point (its first uniform, which picks the outcome and the
+// exit angle, held fixed; the azimuth and the direction free) follows the exit's direction
+// density, in the exit point's x-z frame (chi-square), for every kind of model.
+TEST(Sampler, TheStrideDrawAtAnExitPointFollowsTheExitDirectionDensity) {
+  const std::uint64_t seed = test::test_seed(57);
+  SCOPED_TRACE(test::seed_trace(seed));
+  for (const auto& [name, model] : exit_models()) {
+    const ShellSampler s(model);
+    int points = 0;
+    for (double u0 : {0.23, 0.51, 0.87}) {
+      Uniforms u{seed + std::uint64_t(u0 * 100)};
+      const auto draw = [&] {
+        bool first = true;
+        return s.stride_form().local([&] { return std::exchange(first, false) ? u0 : u(); });
+      };
+      const Stride one = draw();
+      if (one.component != kSmooth) continue;
+      ++points;
+      const double alpha = std::acos(std::clamp(one.point.z, -1.0, 1.0));
+      const Vec3 y{std::sin(alpha), 0, std::cos(alpha)};
+      AxisBins bins(y, 2.0);
+      bins.n_t = 16;
+      const int n = 200000;
+      std::vector<double> observed(bins.bins(), 0), expected = bins.expected([&](const Vec3& w) { return s.exit_direction_pdf(y, w); });
+      for (int i = 0; i < n; ++i) {
+        const Stride e = draw();
+        const double beta = std::atan2(e.point.y, e.point.x), cb = std::cos(beta), sb = std::sin(beta);
+        observed[bins.bin({cb * e.direction.x + sb * e.direction.y, cb * e.direction.y - sb * e.direction.x, e.direction.z})] += 1;
+      }
+      for (double& x : expected) x *= n;
+      const test::Chi2Result r = test::chi2_test(observed, expected);
+      EXPECT_GT(r.p_value, test::kChi2Alpha) << name << " at u0 " << u0 << " (alpha " << alpha << "): " << r.describe();
+    }
+    EXPECT_GE(points, 2) << name;
   }
 }
 

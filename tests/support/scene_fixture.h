@@ -51,9 +51,14 @@ class SceneFixture : public ::testing::Test {
   // The scene `scene_text` at size x size pixels, brute force, on two threads.
   render::Image draw(const std::string& scene_text, int spp, std::uint64_t seed, bool next_event = true,
                      int size = 24) const {
+    return draw_with(scene_text, nullptr, render::PathOptions{next_event, false}, spp, seed, size);
+  }
+  // The same in strides through `pack` (brute force where null), with `options`.
+  render::Image draw_with(const std::string& scene_text, const std::vector<PackEntry>* pack, render::PathOptions options,
+                          int spp, std::uint64_t seed, int size = 24) const {
     const scene::RenderScene sc = scene::read_render_scene(write("scene.toml", scene_text));
     const render::SceneGeometry geometry(sc, render::FreeRadius::kGrid, 64);
-    const render::ScenePaths paths(sc, geometry, nullptr, render::PathOptions{next_event, false});
+    const render::ScenePaths paths(sc, geometry, pack, options);
     render::ImageSettings s;
     s.width = s.height = size, s.spp = spp, s.seed = seed, s.run.threads = 2;
     return render::render_scene(sc, paths, s);

@@ -58,6 +58,14 @@ class ShellSampler {
   // The density of the smooth part (times its probability) that sample() draws from; 0 where
   // the model has no support. The singular parts have no density.
   double pdf(const Vec3& point, const Vec3& direction) const;
+  // The smooth part's density of exit directions at the exit point `point` (unit sphere, local
+  // frame): pdf(point, w) over the point's own density, per steradian, integrating to 1 over w.
+  // What a stride's exit scatters by, for next-event estimation there (its "phase function").
+  double exit_direction_pdf(const Vec3& point, const Vec3& direction) const;
+  // The same for a world-space stride from `position` heading `direction` through the sphere of
+  // `radius`, that left at `exit_point`.
+  double exit_direction_pdf_world(const Vec3& position, const Vec3& direction, double radius, const Vec3& exit_point,
+                                  const Vec3& exit_direction) const;
   // Probability that a path starting at the centre leaves the sphere at all.
   double escape_probability() const { return model_.escape_probability; }
 
@@ -106,6 +114,10 @@ class ShellSampler {
   // `local` (in the exit point's x-z frame): the bin's probability spread by its tilt, times
   // the direction density (blended with the neighbour's in blended bins).
   double smooth_pdf(int bin, double cos_alpha, const Vec3& local) const;
+  // Its direction density alone, at area fraction u of the bin.
+  double exit_direction_pdf(int bin, double cos_alpha, double u, const Vec3& local) const;
+  // The bin of an exit point, and the direction in the point's x-z frame.
+  int exit_frame(const Vec3& point, const Vec3& direction, Vec3& local) const;
   // sample() less the pdf; `bin` is where the smooth part was drawn (-1: the delta).
   ExitSample draw(double u0, double u1, double u2, double u3, int& bin, Vec3& local) const;
   WorldExit to_world(const Vec3& position, const Vec3& direction, double radius, const ExitSample& s) const;

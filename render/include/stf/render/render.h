@@ -26,7 +26,9 @@ struct Image {
   std::vector<double> mean;              // [height * width * channels], row 0 at the top
   std::vector<double> variance_of_mean;  // sample variance / samples, per pixel and channel
   double seconds = 0;                    // wall clock
-  std::int64_t paths = 0, collisions = 0, strides = 0, distance_queries = 0, shadow_rays = 0, rays = 0, ideal_collisions = 0;
+  std::int64_t paths = 0, collisions = 0, strides = 0, distance_queries = 0, shadow_rays = 0, rays = 0, ideal_collisions = 0,
+               once_scattered_exits = 0;
+  std::int64_t rays_by[kRayKinds] = {};
   double mean_radiance(int channel = -1) const;  // over one channel, or all (-1)
 };
 

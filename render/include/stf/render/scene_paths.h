@@ -6,7 +6,9 @@
 //    sun's disc (and, with an environment map, one toward a direction drawn from the map), with
 //    the transmittance of the index-matched media it crosses (zero through a dielectric
 //    boundary or the ground), combined with the phase function's (or the ground's cosine)
-//    direction by the power heuristic; nothing at a stride's exit, whose direction then picks
+//    direction by the power heuristic; at a stride's smooth exit the same, the exit's direction
+//    density (ShellSampler::exit_direction_pdf) in the phase function's place; after a
+//    once-scattered exit none (its directions have no density), its direction then picking
 //    up the sun and the map with weight 1;
 //  - deep inside a medium the shadow ray plays Russian roulette against the transmittance bound
 //    exp(-sigma_t free_radius), so brute force does not pay for rays that carry nothing.
@@ -31,7 +33,7 @@ struct ChannelMedium {
   double sigma_t = 0, inv_sigma_t = 0, albedo = 0, g = 0;
   // After a collision the free radius is the one before less the flight (the distance is
   // 1-Lipschitz) while that is at least this: the largest sphere's radius, or the depth below
-  // which shadow rays start to count (ln(1 / kNeeRoulette) / sigma_t).
+  // which shadow rays start to count (ln(0.5 / kShadowRoulette) / sigma_t).
   double refresh_below = 0;
   HgParams<double> hg{};
 };
@@ -45,6 +47,10 @@ struct PathOptions {
   // counted apart (PathCounters::ideal_collisions): the strides no model can beat, whose shell
   // collisions and strides per path bound what any stride cost can give (bench/scene_bench.py).
   bool ideal_strides = false;
+  // false: a path from a stride's exit that meets a light takes it at weight 1 though a shadow
+  // ray was cast there, counting the light twice; for the test that shows the MIS weight at
+  // exits is what keeps the image right.
+  bool exit_mis = true;
 };
 
 class ScenePaths {
@@ -67,13 +73,20 @@ class ScenePaths {
   double escape(const State& s, int c) const;
   // A direction toward a uniform point of the sun's disc (density sun_pdf_ per sr).
   Vec3 toward_sun(PixelRng& rng) const;
-  double transmittance(Vec3 x, const Vec3& l, int c, PathCounters& counters) const;
-  // What shadow rays from a vertex bring: one toward the sun (`to_sun`, drawn by toward_sun)
-  // and, with a map, one toward a direction drawn from it, each weighted by the power
-  // heuristic against the vertex's own density(l) of scattering into l; start(l) is where
-  // the ray toward l starts.
+  double transmittance(Vec3 x, const Vec3& l, int c, RayKind kind, PathCounters& counters) const;
+  // A vertex that casts shadow rays: its path's channel, what its rays count as, and a bound on
+  // the transmittance from it toward any light (exp(-sigma_t free radius) in a medium).
+  struct ShadowVertex {
+    int channel;
+    RayKind kind;
+    double most;
+  };
+  // What shadow rays from a vertex bring: one toward a uniform point of the sun's disc and, with
+  // a map, one toward a direction drawn from it, each weighted by the power heuristic against
+  // the vertex's own density(l) of scattering into l, each cast or not by Russian roulette
+  // against the most it could bring (kShadowRoulette); start(l) is where the ray toward l starts.
   template <typename Density, typename Start>
-  double direct(const Vec3& to_sun, int c, PixelRng& rng, PathCounters& counters, const Density& density,
+  double direct(const ShadowVertex& v, PixelRng& rng, PathCounters& counters, const Density& density,
                 const Start& start) const;
   // A direction toward a light, its density per sr and the light's radiance along it.
   struct LightSample {
@@ -81,15 +94,18 @@ class ScenePaths {
     double pdf = 0, radiance = 0;
   };
   template <typename Density, typename Start>
-  double light_ray(const LightSample& light, int c, PathCounters& counters, const Density& density,
-                   const Start& start) const;
+  double light_ray(const LightSample& light, const ShadowVertex& v, double u, PathCounters& counters,
+                   const Density& density, const Start& start) const;
   void nee_at_collision(State& s, int c, double bound, PixelRng& rng, PathCounters& counters) const;
+  // At a stride's smooth exit (State::exit set): shadow rays weighted by the exit's direction
+  // density, the free radius at the exit found for them and for the next step.
+  void nee_at_exit(State& s, int c, PixelRng& rng, PathCounters& counters) const;
   bool ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& rng, PathCounters& counters) const;
   void cross(State& s, const SurfaceHit& h, PixelRng& rng) const;
   bool medium_step(State& s, int c, PixelRng& rng, PathCounters& counters) const;
   // The tightest bound the geometry gives at the path's point (the grid's eight cells).
   void look_closer(State& s) const;
-  void stride(State& s, const SphereLookup& spheres, int k, double r, PixelRng& rng, PathCounters& counters) const;
+  void stride(State& s, int c, const ShellSampler& sampler, double r, PixelRng& rng, PathCounters& counters) const;
   void ideal_stride(State& s, const ChannelMedium& m, double r, PixelRng& rng, PathCounters& counters) const;
   bool outside_step(State& s, int c, PixelRng& rng, PathCounters& counters) const;
 
@@ -100,7 +116,7 @@ class ScenePaths {
   std::vector<double> ior_;                     // per object
   std::shared_ptr<const EnvironmentMap> environment_;  // in place of the sky, or null
   Vec3 sun_;
-  bool next_event_ = true, ideal_strides_ = false;
+  bool next_event_ = true, ideal_strides_ = false, exit_mis_ = true;
   double cos_sun_ = 1, sun_pdf_ = 0;            // the disc's cosine and the uniform pdf over it
 };
 

@@ -17,6 +17,19 @@
 
 namespace stf::render {
 
+// What a ray cast against a scene's surfaces is for (PathCounters::rays_by).
+enum RayKind {
+  kCameraRay,       // a camera path's first ray
+  kOutsideRay,      // a path outside media after it left one or the ground
+  kFlightRay,       // a flight in a medium that may reach its boundary
+  kShadowCollision, // a leg of a shadow ray from a collision
+  kShadowExit,      // a leg of a shadow ray from a stride's exit
+  kShadowGround,    // a leg of a shadow ray from the ground
+  kRayKinds
+};
+inline constexpr const char* kRayKindNames[kRayKinds] = {"camera", "outside", "flight", "shadow_collision",
+                                                         "shadow_exit", "shadow_ground"};
+
 struct PathCounters {
   std::int64_t collisions = 0;        // free flights ended by a collision
   std::int64_t strides = 0;           // jumps through a precomputed sphere
@@ -24,6 +37,9 @@ struct PathCounters {
   std::int64_t shadow_rays = 0;       // next-event estimation toward the sun (scenes)
   std::int64_t rays = 0;              // at the surfaces (scenes): flights, paths outside, shadow legs
   std::int64_t ideal_collisions = 0;  // inside ideal strides (scenes, PathOptions::ideal_strides)
+  std::int64_t once_scattered_exits = 0;  // strides left once scattered: no shadow ray there (scenes)
+  std::int64_t rays_by[kRayKinds] = {};    // rays by what they are for
+  void count_ray(RayKind kind) { ++rays, ++rays_by[kind]; }
 };
 
 // Paths whose throughput falls below this play Russian roulette (survivors carry exactly it),
