@@ -14,7 +14,9 @@ and brute force's collisions per second; per pair: the equal-error speed-up
 channels; for unbiased estimators variance * time is a constant of the method), the stride's
 cost c in collisions measured in the strided run and the bound B / (C + c N) at it, the 4 x 4
 block z of their difference (max over channels, target <= 4.5), the per-channel mean ratio
-(target within 1%) and the frames of this size and spp the pack pays off in. With --ideal, a
+(target within 1%), the per-channel variance ratio and equal-error speed-up, rays per path by
+kind, and the frames of this size and spp the pack pays off in at equal error (none where
+strides do not pay). With --ideal, a
 third run with ideal strides (stf render --ideal-strides: the true transport through each
 sphere) gives the shell collisions and strides of a perfect model, and the bound
 B / (C_ideal + c N_ideal) at the same c.
@@ -120,10 +122,14 @@ def timed_pair(a, stf, scene, name, free_radius):
 
 def compare(a, stf, scene, name, free_radius, pack_seconds):
     mb, vb, sb, ms, vs, ss = timed_pair(a, stf, scene, name, free_radius)
-    speedup = np.mean([(sb["seconds"] * vb[..., c].sum()) / (ss["seconds"] * vs[..., c].sum()) for c in range(3)])
+    efficiency = [(sb["seconds"] * vb[..., c].sum()) / (ss["seconds"] * vs[..., c].sum()) for c in range(3)]
+    speedup = np.mean(efficiency)
     z = block_z(mb, vb, ms, vs)
-    saved = sb["seconds"] - ss["seconds"]
+    # What strides save on one frame at brute force's error: nothing where they do not pay.
+    saved = sb["seconds"] * (1 - 1 / speedup) if speedup > 1 else 0
     row = {"scene": name, "free_radius": free_radius, "equal_error_speedup": float(speedup),
+           "equal_error_speedup_per_channel": [float(e) for e in efficiency],
+           "variance_ratio_per_channel": [float(vs[..., c].sum() / vb[..., c].sum()) for c in range(3)],
            "max_block_z": float(np.abs(z).max()),
            "mean_ratio": [float(ms[..., c].mean() / mb[..., c].mean()) for c in range(3)],
            "mean_z": [float((ms[..., c].sum() - mb[..., c].sum()) / np.sqrt(vb[..., c].sum() + vs[..., c].sum()))
@@ -149,7 +155,10 @@ def compare(a, stf, scene, name, free_radius, pack_seconds):
     for tag, s in (("brute", sb), ("stf", ss)):
         row[tag] = {"seconds": s["seconds"], "collisions_per_path": per_path(s, "collisions"),
                     "strides_per_path": per_path(s, "strides"), "distance_queries_per_path": per_path(s, "distance_queries"),
-                    "shadow_rays_per_path": per_path(s, "shadow_rays"), "grid_bytes": s["grid_bytes"]}
+                    "shadow_rays_per_path": per_path(s, "shadow_rays"), "rays_per_path": per_path(s, "rays"),
+                    "rays_by_kind_per_path": {k: v / s["paths"] for k, v in s.get("rays_by_kind", {}).items()},
+                    "once_scattered_exits_per_stride": s.get("once_scattered_exits", 0) / max(1, s["strides"]),
+                    "grid_bytes": s["grid_bytes"]}
     if a.pictures:
         picture(mb, ms, z, os.path.join(a.out, f"{name}_pair.png"), a.exposure)
     return row
