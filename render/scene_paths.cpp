@@ -86,7 +86,7 @@ ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geo
                        PathOptions options)
     : scene_(scene), geometry_(geometry), environment_(read_environment(scene)), sun_(scene.light.sun_direction),
       next_event_(options.next_event), ideal_strides_(options.ideal_strides), exit_mis_(options.exit_mis) {
-  cos_sun_ = std::cos(scene.light.sun_angle * kPi / 180);
+  cos_sun_ = std::cos(scene.light.sun_angle * kPi / 180), sin_sun_ = std::sin(scene.light.sun_angle * kPi / 180);
   sun_pdf_ = 1 / (2 * kPi * (1 - cos_sun_));
   // Channels (of any object) of one albedo and g stride through the same spheres: one lookup
   // for them all, whose samplers are built once.
@@ -176,13 +176,8 @@ double ScenePaths::light_ray(const LightSample& light, const ShadowVertex& v, do
 }
 
 template <typename Density, typename Start>
-double ScenePaths::direct(const ShadowVertex& v, PixelRng& rng, PathCounters& counters, const Density& density,
-                          const Start& start) const {
-  // One uniform decides each light's roulette: first against the most any light's gain (1/2)
-  // allows, before a light is drawn (deep in a medium, most vertices stop here); the same
-  // uniform, below that, is uniform below it for each light's own probability.
-  const double u = rng.uniform();
-  if (u >= 0.5 * v.most / kShadowRoulette) return 0;
+double ScenePaths::direct(const ShadowVertex& v, double u, PixelRng& rng, PathCounters& counters,
+                          const Density& density, const Start& start) const {
   const int c = v.channel;
   double sum = light_ray({toward_sun(rng), sun_pdf_, scene_.light.sun[std::size_t(c)]}, v, u, counters, density, start);
   if (environment_) {
@@ -194,12 +189,25 @@ double ScenePaths::direct(const ShadowVertex& v, PixelRng& rng, PathCounters& co
   return sum;
 }
 
+bool ScenePaths::may_cast(double u, double most) { return u < 0.5 * most / kShadowRoulette; }
+
+double ScenePaths::collision_gain_bound(const ChannelMedium& m, const Vec3& w) const {
+  if (environment_) return 0.5;  // a map's rays may go anywhere
+  // The phase density is monotone in the cosine: its largest over the disc is at the disc's
+  // point nearest w (g >= 0) or farthest from it (g < 0).
+  const double c = dot(w, sun_), s = std::sqrt(std::max(0.0, 1 - c * c));
+  const double extreme = m.g >= 0 ? (c >= cos_sun_ ? 1.0 : c * cos_sun_ + s * sin_sun_)
+                                   : std::max(-1.0, c * cos_sun_ - s * sin_sun_);
+  return std::min(0.5, phase_density(m, extreme) / sun_pdf_);
+}
+
 void ScenePaths::nee_at_collision(State& s, int c, double bound, PixelRng& rng, PathCounters& counters) const {
   if (!next_event_ || ior_[std::size_t(s.inside)] != 1) return;  // behind a dielectric no shadow ray passes
   const ChannelMedium& m = medium(s.inside, c);
+  const double most = std::exp(-m.sigma_t * bound), u = rng.uniform();  // no direction leaves sooner
+  if (!may_cast(u, most) || u >= collision_gain_bound(m, s.w) * most / kShadowRoulette) return;
   const Vec3 x = s.x, w = s.w;
-  // No direction reaches the boundary sooner than the free radius.
-  s.radiance += s.throughput * direct({c, kShadowCollision, std::exp(-m.sigma_t * bound)}, rng, counters,
+  s.radiance += s.throughput * direct({c, kShadowCollision, most}, u, rng, counters,
                                       [&](const Vec3& l) { return phase_density(m, dot(w, l)); },
                                       [&](const Vec3&) { return x; });
 }
@@ -209,9 +217,11 @@ void ScenePaths::nee_at_exit(State& s, int c, PixelRng& rng, PathCounters& count
   if (!next_event_ || ior_[std::size_t(s.inside)] != 1) return;
   s.bound = geometry_.free_radius(s.x, s.inside), ++counters.distance_queries;  // the next step's too
   s.tight = geometry_.method() != FreeRadius::kGrid;
+  const double most = std::exp(-medium(s.inside, c).sigma_t * s.bound), u = rng.uniform();
+  if (!may_cast(u, most)) return;
   const Vec3 x = s.x;
   const ExitVertex& exit = s.exit;
-  s.radiance += s.throughput * direct({c, kShadowExit, std::exp(-medium(s.inside, c).sigma_t * s.bound)}, rng, counters,
+  s.radiance += s.throughput * direct({c, kShadowExit, most}, u, rng, counters,
                                       [&](const Vec3& l) { return exit.density(l); }, [&](const Vec3&) { return x; });
 }
 
@@ -328,9 +338,9 @@ bool ScenePaths::ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& r
   const double albedo = scene_.ground.albedo[std::size_t(c)];
   if (albedo <= 0) return false;
   const Vec3 x = s.x;
-  if (next_event_)
+  if (next_event_)  // nothing attenuates: every uniform passes may_cast
     s.radiance += s.throughput * albedo *
-                  direct({c, kShadowGround, 1.0}, rng, counters, [](const Vec3& l) { return std::max(0.0, l.y) / kPi; },
+                  direct({c, kShadowGround, 1.0}, rng.uniform(), rng, counters, [](const Vec3& l) { return std::max(0.0, l.y) / kPi; },
                          [&](const Vec3& l) { return geometry_.spawn(x, h.normal, l); });
   const double u = rng.uniform(), cos_o = std::sqrt(1 - u);  // cosine-weighted
   s.w = around(h.normal, cos_o, std::sqrt(u), rng.uniform());

@@ -81,12 +81,19 @@ class ScenePaths {
     RayKind kind;
     double most;
   };
+  // One uniform u decides a vertex's shadow rays: cast toward a light of gain g with probability
+  // min(1, g most / kShadowRoulette), u below it. Before any light is drawn, u is held against
+  // the most any gain allows (1/2): deep in a medium most vertices stop there.
+  static bool may_cast(double u, double most);
+  // A tighter bound on the gain of a collision's shadow rays: its phase density at the sun's
+  // disc over the disc's density (no map), else 1/2.
+  double collision_gain_bound(const ChannelMedium& m, const Vec3& w) const;
   // What shadow rays from a vertex bring: one toward a uniform point of the sun's disc and, with
   // a map, one toward a direction drawn from it, each weighted by the power heuristic against
   // the vertex's own density(l) of scattering into l, each cast or not by Russian roulette
   // against the most it could bring (kShadowRoulette); start(l) is where the ray toward l starts.
   template <typename Density, typename Start>
-  double direct(const ShadowVertex& v, PixelRng& rng, PathCounters& counters, const Density& density,
+  double direct(const ShadowVertex& v, double u, PixelRng& rng, PathCounters& counters, const Density& density,
                 const Start& start) const;
   // A direction toward a light, its density per sr and the light's radiance along it.
   struct LightSample {
@@ -117,7 +124,7 @@ class ScenePaths {
   std::shared_ptr<const EnvironmentMap> environment_;  // in place of the sky, or null
   Vec3 sun_;
   bool next_event_ = true, ideal_strides_ = false, exit_mis_ = true;
-  double cos_sun_ = 1, sun_pdf_ = 0;            // the disc's cosine and the uniform pdf over it
+  double cos_sun_ = 1, sin_sun_ = 0, sun_pdf_ = 0;            // the disc's cosine and the uniform pdf over it
 };
 
 // Fresnel reflectance of unpolarised light at a smooth interface, going from index n_i to n_t
