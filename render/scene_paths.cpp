@@ -213,8 +213,7 @@ void ScenePaths::nee_at_collision(State& s, int c, double bound, PixelRng& rng, 
 }
 
 void ScenePaths::nee_at_exit(State& s, int c, PixelRng& rng, PathCounters& counters) const {
-  s.after_nee = next_event_ && exit_mis_, s.scatter_medium = nullptr;
-  if (!next_event_ || ior_[std::size_t(s.inside)] != 1) return;
+  s.after_nee = exit_mis_, s.scatter_medium = nullptr;
   s.bound = geometry_.free_radius(s.x, s.inside), ++counters.distance_queries;  // the next step's too
   s.tight = geometry_.method() != FreeRadius::kGrid;
   const double most = std::exp(-medium(s.inside, c).sigma_t * s.bound), u = rng.uniform();
@@ -287,6 +286,10 @@ void ScenePaths::stride(State& s, int c, const ShellSampler& sampler, double r, 
   if (e.component == kUncollided) return;  // straight on: the vertex before keeps its weight
   if (e.component != kSmooth) {  // once scattered: its directions lie on a curve, no density
     s.after_nee = false, ++counters.once_scattered_exits;
+    return;
+  }
+  if (!next_event_ || ior_[std::size_t(s.inside)] != 1) {  // behind a dielectric no shadow ray passes
+    s.after_nee = false;
     return;
   }
   const Frame f = Frame::around(start);

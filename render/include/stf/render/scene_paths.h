@@ -104,8 +104,9 @@ class ScenePaths {
   double light_ray(const LightSample& light, const ShadowVertex& v, double u, PathCounters& counters,
                    const Density& density, const Start& start) const;
   void nee_at_collision(State& s, int c, double bound, PixelRng& rng, PathCounters& counters) const;
-  // At a stride's smooth exit (State::exit set): shadow rays weighted by the exit's direction
-  // density, the free radius at the exit found for them and for the next step.
+  // At a stride's smooth exit in an index-matched medium (State::exit set): shadow rays weighted
+  // by the exit's direction density, the free radius at the exit found for them and for the
+  // next step.
   void nee_at_exit(State& s, int c, PixelRng& rng, PathCounters& counters) const;
   bool ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& rng, PathCounters& counters) const;
   void cross(State& s, const SurfaceHit& h, PixelRng& rng) const;
