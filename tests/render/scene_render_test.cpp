@@ -12,6 +12,7 @@
 
 #include "image_compare.h"
 #include "scene_fixture.h"
+#include "stf/render/image_file.h"
 #include "stf/scene/scene_error.h"
 
 namespace {
@@ -121,6 +122,31 @@ TEST_F(SceneRender, NextEventEstimationAtStrideExitsDrawsTheImageOfEscapingPaths
     const ImageComparison d = compare_images(with.mean, with.variance_of_mean, twice.mean, twice.variance_of_mean, 24, 24, 3, 4);
     EXPECT_GT(std::max({d.mean_z[0], d.mean_z[1], d.mean_z[2]}), 5) << file;
   }
+}
+
+// The same under an environment map alone (a dim sky with a bright patch low on one side): the
+// map's shadow rays at exits, weighed against the exit's density, and paths that find the map
+// by leaving, weighed the other way.
+TEST_F(SceneRender, NextEventEstimationAtStrideExitsWithAMapDrawsTheImageOfEscapingPaths) {
+  std::vector<double> rgb;
+  for (int v = 0; v < 16; ++v)
+    for (int u = 0; u < 32; ++u) {
+      const double bright = v >= 5 && v < 7 && u >= 20 && u < 23 ? 20.0 : 0.0;
+      rgb.insert(rgb.end(), {0.1 + bright, 0.15 + 0.8 * bright, 0.2 + 0.5 * bright});
+    }
+  render::write_exr(path("patch.exr"), {rgb, 32, 16, 3});
+  std::string scene = kStridedScene;
+  const std::size_t light = scene.find("[light]"), media = scene.find("[[media]]");
+  scene.replace(light, media - light, "[light]\nenvironment = \"patch.exr\"\nsun_radiance = 0\n");
+  const std::vector<PackEntry> pack = test_pack(STF_RENDER_PACK);
+  const render::Image with = draw_with(scene, &pack, {true, false, true}, 600, 8);
+  const render::Image without = draw_with(scene, &pack, {false, false, true}, 1200, 9);
+  EXPECT_GT(with.rays_by[render::kShadowExit], 0);
+  const ImageComparison r =
+      compare_images(without.mean, without.variance_of_mean, with.mean, with.variance_of_mean, 24, 24, 3, 4);
+  EXPECT_GT(r.blocks, 80);
+  EXPECT_LT(r.max_block_z, 4.5);
+  for (int c = 0; c < 3; ++c) EXPECT_LT(std::abs(r.mean_z[std::size_t(c)]), 4.5) << c;
 }
 
 TEST_F(SceneRender, AnalyticSphereAndIcosphereAgree) {
