@@ -194,10 +194,11 @@ bool ScenePaths::may_cast(double u, double most) { return u < 0.5 * most / kShad
 double ScenePaths::collision_gain_bound(const ChannelMedium& m, const Vec3& w) const {
   if (environment_) return 0.5;  // a map's rays may go anywhere
   // The phase density is monotone in the cosine: its largest over the disc is at the disc's
-  // point nearest w (g >= 0) or farthest from it (g < 0).
+  // point nearest w (g >= 0; w itself where the disc holds it) or farthest from it (g < 0; -w
+  // where the disc holds that).
   const double c = dot(w, sun_), s = std::sqrt(std::max(0.0, 1 - c * c));
   const double extreme = m.g >= 0 ? (c >= cos_sun_ ? 1.0 : c * cos_sun_ + s * sin_sun_)
-                                   : std::max(-1.0, c * cos_sun_ - s * sin_sun_);
+                                   : (-c >= cos_sun_ ? -1.0 : c * cos_sun_ - s * sin_sun_);
   return std::min(0.5, phase_density(m, extreme) / sun_pdf_);
 }
 
