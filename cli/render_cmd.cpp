@@ -51,12 +51,13 @@ scene::Scene render_scene(const RenderOptions& o) {
   return sc;
 }
 
-}  // namespace
-
+// `files` and `more` in one list.
 std::vector<NamedFile> with(std::vector<NamedFile> files, const std::vector<NamedFile>& more) {
   files.insert(files.end(), more.begin(), more.end());
   return files;
 }
+
+}  // namespace
 
 scene::Settings render_pack_settings(double tolerance, const std::string& model) {
   scene::Settings s;

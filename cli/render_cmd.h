@@ -58,9 +58,6 @@ std::vector<PackEntry> read_pack_option(const std::string& path);
 // `model` (hvmf:auto unless --model), certified within `tolerance`.
 scene::Settings render_pack_settings(double tolerance, const std::string& model);
 
-// `files` and `more` in one list.
-std::vector<NamedFile> with(std::vector<NamedFile> files, const std::vector<NamedFile>& more);
-
 void run_scene_render(const RenderOptions& o, const CLI::App& cmd);
 
 }  // namespace stf::cli

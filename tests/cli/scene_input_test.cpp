@@ -56,10 +56,11 @@ class SceneInputs : public Cli {
   }
   // Runs stf with `args`; expects exit 2, one line holding each of `names`, and every file of the
   // test folder as it was.
-  void expect_refused(const std::string& args, const std::vector<std::string>& names) {
-    expect_refused_shell(std::string(STF_BINARY) + " " + args, names);
+  // Returns the line.
+  std::string expect_refused(const std::string& args, const std::vector<std::string>& names) {
+    return expect_refused_shell(std::string(STF_BINARY) + " " + args, names);
   }
-  void expect_refused_shell(const std::string& args, const std::vector<std::string>& names) {
+  std::string expect_refused_shell(const std::string& args, const std::vector<std::string>& names) {
     std::map<std::string, std::string> before;
     for (const auto& e : fs::directory_iterator(dir_))
       if (e.is_regular_file()) before[e.path().string()] = bytes_of(e.path().string());
@@ -71,6 +72,7 @@ class SceneInputs : public Cli {
     for (const auto& e : fs::directory_iterator(dir_))
       if (e.is_regular_file()) after[e.path().string()] = bytes_of(e.path().string());
     EXPECT_EQ(after, before) << args;
+    return r.err;
   }
   std::string render(const std::string& scene = "") {
     return "render " + (scene.empty() ? out("scene.toml") : scene) + " --spp 1 --method brute --quiet";
@@ -131,8 +133,8 @@ TEST_F(SceneInputs, MeshesAndMapsThatAreNotRegularFilesAreRefusedAsSuch) {
   fs::create_directories(out("folder.obj"));
   for (const std::string mesh : {"pipe.obj", "folder.obj", "/dev/zero"}) {
     write(out("s.toml"), scene_text(mesh));
-    expect_refused(render(out("s.toml")) + " -o " + out("image.h5"), {"s.toml:", "objects[0].mesh"});
-    EXPECT_TRUE(stf(render(out("s.toml")) + " -o " + out("image.h5")).err.find("no such file") == std::string::npos);
+    const std::string line = expect_refused(render(out("s.toml")) + " -o " + out("image.h5"), {"s.toml:", "objects[0].mesh"});
+    EXPECT_EQ(line.find("no such file"), std::string::npos) << line;
   }
   std::string map_scene = scene_text();
   map_scene.replace(map_scene.find("sky.pfm"), 7, "/dev/zero");

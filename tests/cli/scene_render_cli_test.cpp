@@ -5,11 +5,10 @@
 #include "cli_fixture.h"
 #include "image_compare.h"
 #include "stf/core/h5io.h"
+#include "strided_scene.h"
 
 namespace {
 
-// Three channels of one albedo (0.99) and g (0.5) with sigma_t 8, 4 and 16: the tau 2 and 4
-// spheres of tests/cli/render_scene.toml's pack serve all three at different radii.
 const std::string kScene = R"([camera]
 position = [0, 0.5, 3]
 look_at = [0, 0, 0]
@@ -20,19 +19,7 @@ height = 24
 sky = [0.6, 0.7, 0.8]
 sun_direction = [1, 1.5, 0.5]
 sun_radiance = 30
-[[media]]
-name = "grey"
-sigma_s = [7.92, 3.96, 15.84]
-sigma_a = [0.08, 0.04, 0.16]
-g = 0.5
-[[objects]]
-mesh = ")" + std::string(STF_SOURCE_DIR) + R"(/data/scenes/meshes/icosphere.obj"
-scale = 1.6
-medium = "grey"
-[ground]
-height = -0.9
-albedo = 0.5
-)";
+)" + stf::test::strided_objects();
 
 struct Rendered {
   std::vector<double> mean, variance_of_mean;

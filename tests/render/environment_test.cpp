@@ -131,13 +131,7 @@ TEST_F(EnvironmentScene, AConstantMapIsAUniformSky) {
 
 TEST_F(EnvironmentScene, NextEventEstimationDrawsTheImageOfEscapingPaths) {
   // A dim sky with a bright patch low on one side, which lights the ground and the box.
-  std::vector<double> rgb;
-  for (int v = 0; v < 16; ++v)
-    for (int u = 0; u < 32; ++u) {
-      const double bright = v >= 5 && v < 7 && u >= 20 && u < 23 ? 60.0 : 0.0;
-      rgb.insert(rgb.end(), {0.3 + bright, 0.4 + 0.8 * bright, 0.6 + 0.5 * bright});
-    }
-  write_map("patch.exr", 32, 16, rgb);
+  write_map("patch.exr", 32, 16, test::patch_sky(1, 60));
   const std::string scene = scene_with("environment = \"patch.exr\"");
   const render::Image with = draw(scene, 300, 13, true), without = draw(scene, 1200, 14, false);
   EXPECT_EQ(without.shadow_rays, 0);

@@ -12,6 +12,7 @@
 
 #include "image_compare.h"
 #include "scene_fixture.h"
+#include "strided_scene.h"
 #include "stf/render/image_file.h"
 #include "stf/scene/scene_error.h"
 
@@ -71,28 +72,15 @@ TEST_F(SceneRender, NextEventEstimationDrawsTheImageOfEscapingPaths) {
   for (int c = 0; c < 3; ++c) EXPECT_LT(std::abs(r.mean_z[std::size_t(c)]), 4.5) << c;
 }
 
-// A lit, index-matched medium the test pack's tau 2 and 4 spheres stride through (albedo 0.99,
-// g 0.5; sigma_t 8, 4 and 16 per channel) in an icosphere of radius 0.8 on a ground, under a
-// large sun that paths leaving strides meet often.
+// A lit, index-matched medium the test pack's spheres stride through, under a large sun that
+// paths leaving strides meet often.
 const std::string kStridedScene = kCamera + R"(
 [light]
 sky = 0.02
 sun_direction = [1, 1.5, 0.5]
 sun_radiance = [6, 5, 4]
 sun_angle = 25
-[[media]]
-name = "grey"
-sigma_s = [7.92, 3.96, 15.84]
-sigma_a = [0.08, 0.04, 0.16]
-g = 0.5
-[[objects]]
-mesh = ")" + kMeshes + R"(icosphere.obj"
-scale = 1.6
-medium = "grey"
-[ground]
-height = -0.9
-albedo = 0.5
-)";
+)" + test::strided_objects();
 
 std::vector<PackEntry> test_pack(const char* path) {
   std::vector<PackEntry> pack;
@@ -128,12 +116,7 @@ TEST_F(SceneRender, NextEventEstimationAtStrideExitsDrawsTheImageOfEscapingPaths
 // map's shadow rays at exits, weighed against the exit's density, and paths that find the map
 // by leaving, weighed the other way.
 TEST_F(SceneRender, NextEventEstimationAtStrideExitsWithAMapDrawsTheImageOfEscapingPaths) {
-  std::vector<double> rgb;
-  for (int v = 0; v < 16; ++v)
-    for (int u = 0; u < 32; ++u) {
-      const double bright = v >= 5 && v < 7 && u >= 20 && u < 23 ? 20.0 : 0.0;
-      rgb.insert(rgb.end(), {0.1 + bright, 0.15 + 0.8 * bright, 0.2 + 0.5 * bright});
-    }
+  const std::vector<double> rgb = test::patch_sky(1.0 / 3, 20);
   render::write_exr(path("patch.exr"), {rgb, 32, 16, 3});
   std::string scene = kStridedScene;
   const std::size_t light = scene.find("[light]"), media = scene.find("[[media]]");

@@ -259,6 +259,12 @@ TEST(Sampler, ExitDirectionDensityIntegratesToOneAtEveryExitPoint) {
         }
       }
       EXPECT_NEAR(total * kPi / ntheta * 2 * kPi / nphi, 1, 1e-3) << name << " at alpha " << alpha;
+      // The world-space form is the same density about a stride's start and heading.
+      const Vec3 x{0.3, -1.2, 2.0}, d = normalize(Vec3{0.2, 0.9, -0.4}), w = normalize(Vec3{-0.5, 0.1, 0.7});
+      const Frame frame = Frame::around(d);
+      EXPECT_NEAR(s.exit_direction_pdf_world(x, d, 0.7, x + 0.7 * frame.to_world(y), frame.to_world(w)),
+                  s.exit_direction_pdf(y, w), 1e-9 * (1 + s.exit_direction_pdf(y, w)))
+          << name;
     }
   }
 }

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "stf/render/render.h"
 #include "stf/render/scene_geometry.h"
@@ -34,6 +35,18 @@ medium = "milky"
 height = -0.36
 albedo = [0.7, 0.6, 0.5]
 )";
+}
+
+// A 32 x 16 latitude-longitude map (RGB, row 0 at the top): a dim sky, `dim` times (0.3, 0.4,
+// 0.6), with a patch of about `bright` low on one side.
+inline std::vector<double> patch_sky(double dim, double bright) {
+  std::vector<double> rgb;
+  for (int v = 0; v < 16; ++v)
+    for (int u = 0; u < 32; ++u) {
+      const double b = v >= 5 && v < 7 && u >= 20 && u < 23 ? bright : 0.0;
+      rgb.insert(rgb.end(), {dim * 0.3 + b, dim * 0.4 + 0.8 * b, dim * 0.6 + 0.5 * b});
+    }
+  return rgb;
 }
 
 class SceneFixture : public ::testing::Test {
