@@ -7,6 +7,8 @@
 
 #include "stf/scene/build.h"
 #include "cli.h"
+#include "stf/render/pack_recipe.h"
+#include "stf/scene/render_scene.h"
 #include "mpi.h"
 #include "stf/scene/plan.h"
 #include "stf/scene/scene.h"
@@ -19,7 +21,34 @@ struct BuildOptions {
   std::string scene, output, cache;
   std::string threads = "0";
   bool plan_only = false, json = false, quiet = false, strict = false;
+  double tolerance = 0.02;          // render scenes: as stf render's --tolerance
+  std::string model = "hvmf:auto";  // render scenes: as stf render's --model
 };
+
+// The recipe of `o.scene`: a pack recipe as written, or for a render scene (one with
+// [[objects]]) the pack `stf render --method stf` would build for it (render/pack_recipe.h).
+scene::Scene recipe_of(const BuildOptions& o, const CLI::App& cmd, int threads) {
+  if (!scene::is_render_scene(o.scene)) {
+    if (cmd.count("--tolerance") || cmd.count("--model"))
+      fail("--tolerance and --model apply to render scenes; a pack recipe sets them in [settings]");
+    return scene::read_scene(o.scene);
+  }
+  if (!(o.tolerance > 0 && o.tolerance < 1)) fail("--tolerance must be in (0, 1), got " + std::to_string(o.tolerance));
+  const scene::RenderScene sc = scene::read_render_scene(o.scene);
+  const render::SceneGeometry geometry(sc, render::FreeRadius::kGrid, 256, RunContext{threads, &interrupted, {}});
+  stop_if_interrupted();
+  scene::Settings settings;
+  settings.tolerance = o.tolerance, settings.model = o.model;
+  return render::scene_pack_recipe(sc, geometry, settings);
+}
+
+// The cache a build reads and fills: --cache; for a render scene stf render's own (so that
+// renders find what was built), for a recipe SCENE.toml.cache.
+std::string cache_of(const BuildOptions& o) {
+  if (!o.cache.empty()) return o.cache;
+  const std::string shared = render::default_cache_folder();
+  return scene::is_render_scene(o.scene) && !shared.empty() ? shared : o.scene + ".cache";
+}
 
 // One line per entry that a tolerance build could not certify within the tolerance.
 void warn_unmet(const scene::Plan& plan, bool strict) {
@@ -38,21 +67,21 @@ void warn_unmet(const scene::Plan& plan, bool strict) {
   std::fprintf(stderr, "stf build: warning: %s\n", summary.c_str());
 }
 
-void run_build(const BuildOptions& o) {
+void run_build(const BuildOptions& o, const CLI::App& cmd) {
+  if (o.plan_only && !o.output.empty()) fail("-o and --plan-only exclude each other: --plan-only writes no pack");
+  if (!o.plan_only && o.output.empty()) fail("-o must name the output pack (or use --plan-only)");
+  if (o.json && o.output == "-") fail("--json and -o - would both write to stdout; give -o a file");
+  const int threads = int(parse_count(o.threads, "--threads", 0, 4096));
   scene::Scene sc;
   try {
-    sc = scene::read_scene(o.scene);
+    sc = recipe_of(o, cmd, threads);
   } catch (const scene::SceneError& e) {
     fail(e.what());
   }
-  if (o.plan_only && !o.output.empty()) fail("-o and --plan-only exclude each other: --plan-only writes no pack");
-  if (!o.plan_only && o.output.empty()) fail("-o must name the output pack (or use --plan-only)");
-  const std::string cache = o.cache.empty() ? o.scene + ".cache" : o.cache;
+  const std::string cache = cache_of(o);
   if (!o.plan_only) require_writable_folder(cache, "--cache");
-  if (o.json && o.output == "-") fail("--json and -o - would both write to stdout; give -o a file");
   if (!o.output.empty() && inside_folder(o.output, cache))
     fail("-o '" + o.output + "' is inside the cache '" + cache + "', which holds the tables and models the build reads; choose another folder");
-  const int threads = int(parse_count(o.threads, "--threads", 0, 4096));
   scene::Plan plan = scene::make_plan(sc, cache);
   if (o.plan_only) {
     if (o.json) std::fputs(scene::plan_json(plan).c_str(), stdout);
@@ -103,17 +132,25 @@ void run_build(const BuildOptions& o) {
 void add_build_command(CLI::App& app) {
   auto o = std::make_shared<BuildOptions>();
   CLI::App* cmd = app.add_subcommand("build", "Plan, compute (cached) and pack what a scene's media need");
-  cmd->add_option("scene", o->scene, "Scene file (TOML)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("scene", o->scene, "A render scene (builds the pack stf render would use) or a pack recipe (TOML)")
+      ->required()
+      ->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", o->output, "Output pack");
   cmd->add_flag("--plan-only", o->plan_only, "Print the plan; compute nothing");
   cmd->add_flag("--json", o->json,
                 "The plan as JSON on stdout (after a build: as built, with what each entry got)");
   cmd->add_flag("--strict", o->strict,
                 "Exit with status 3 (and write no pack) when an entry is not certified within the tolerance");
-  cmd->add_option("--cache", o->cache, "Cache folder (default: SCENE.toml.cache)");
+  cmd->add_option("--cache", o->cache,
+                  "Cache folder (default: a render scene's is stf render's, $STF_CACHE_DIR or ~/.cache/stf; a "
+                  "recipe's SCENE.toml.cache)");
+  cmd->add_option("--tolerance", o->tolerance, "Render scenes: TV distance each sphere is certified within")
+      ->capture_default_str();
+  cmd->add_option("--model", o->model, "Render scenes: the spheres' model family (a fitter's --model)")
+      ->capture_default_str();
   cmd->add_option("--threads", o->threads, "Worker threads (0: all cores)")->capture_default_str();
   cmd->add_flag("--quiet", o->quiet, "No plan table and no progress");
-  cmd->callback([o] { run_build(*o); });
+  cmd->callback([o, cmd] { run_build(*o, *cmd); });
 }
 
 }  // namespace stf::cli

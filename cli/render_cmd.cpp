@@ -17,6 +17,7 @@
 #include "stf/core/h5io.h"
 #include "stf/scene/plan.h"
 #include "stf/render/image_file.h"
+#include "stf/render/pack_recipe.h"
 #include "stf/precompute/precompute.h"
 #include "stf/render/render.h"
 #include "stf/render/render_scene.h"
@@ -27,28 +28,12 @@ namespace stf::cli {
 
 namespace {
 
-// Where packs built for renders are cached: --cache, $STF_CACHE_DIR, $XDG_CACHE_HOME/stf or
-// ~/.cache/stf.
+// Where packs built for renders are cached: --cache, else render::default_cache_folder().
 std::string cache_folder(const RenderOptions& o) {
   if (!o.cache.empty()) return o.cache;
-  if (const char* d = std::getenv("STF_CACHE_DIR"); d && *d) return d;
-  if (const char* d = std::getenv("XDG_CACHE_HOME"); d && *d) return std::string(d) + "/stf";
-  if (const char* d = std::getenv("HOME"); d && *d) return std::string(d) + "/.cache/stf";
-  fail("no cache folder for the pack: give --cache (or set STF_CACHE_DIR)");
-}
-
-// The one-medium scene whose pack the render needs: the spheres of render::pack_ladder, certified
-// within `tolerance` (limits as in the default scene, healpix:16).
-scene::Scene render_scene(const RenderOptions& o) {
-  scene::Scene sc;
-  sc.path = "stf render";
-  sc.settings = render_pack_settings(o.tolerance, o.model);
-  const Medium& m = o.medium;
-  const render::PackLadder ladder = render::pack_ladder(m);
-  sc.settings.tau_skip = ladder.smallest;
-  sc.settings.tau_ratio = ladder.ratio;
-  sc.media.push_back({"render", m.sigma_s, m.sigma_a, m.g, ladder.radius_min, ladder.radius_max, 0});
-  return sc;
+  const std::string folder = render::default_cache_folder();
+  if (folder.empty()) fail("no cache folder for the pack: give --cache (or set STF_CACHE_DIR)");
+  return folder;
 }
 
 // `files` and `more` in one list.
@@ -59,13 +44,10 @@ std::vector<NamedFile> with(std::vector<NamedFile> files, const std::vector<Name
 
 }  // namespace
 
-scene::Settings render_pack_settings(double tolerance, const std::string& model) {
+scene::Settings render_pack_settings(const RenderOptions& o) {
   scene::Settings s;
-  s.tolerance = tolerance;
-  s.paths = 4'000'000;
-  s.grid = "healpix:16";
-  s.alpha_bins = 45;
-  s.model = model;
+  s.tolerance = o.tolerance;
+  s.model = o.model;
   return s;
 }
 
@@ -206,7 +188,7 @@ void run_sphere_render(const RenderOptions& o, const CLI::App& cmd) {
   const render::ShellStrides* strided = nullptr;
   if (stf) {
     auto strides = std::make_unique<render::ShellStrides>(
-        o.medium, o.pack.empty() ? build_pack(render_scene(o), o, s.run.threads, build) : read_pack_option(o.pack));
+        o.medium, o.pack.empty() ? build_pack(render::sphere_pack_recipe(o.medium, render_pack_settings(o)), o, s.run.threads, build) : read_pack_option(o.pack));
     strided = strides.get();
     if (!o.pack.empty() && strides->spheres() == 0)  // most likely the pack of another medium
       fail("--pack: " + o.pack + " has no sphere of albedo " + shortest(o.medium.albedo()) + " and g " +

@@ -54,9 +54,8 @@ render::ImageSettings image_settings(const RenderOptions& o, const CLI::App& cmd
 std::vector<PackEntry> build_pack(const scene::Scene& scene, const RenderOptions& o, int threads, PackBuild& build);
 std::vector<PackEntry> read_pack_option(const std::string& path);
 
-// The settings of the packs renders build: 4e6 paths per sphere on healpix:16, 45 alpha bins,
-// `model` (hvmf:auto unless --model), certified within `tolerance`.
-scene::Settings render_pack_settings(double tolerance, const std::string& model);
+// The settings of the packs renders build: scene::Settings' defaults with --tolerance and --model.
+scene::Settings render_pack_settings(const RenderOptions& o);
 
 void run_scene_render(const RenderOptions& o, const CLI::App& cmd);
 

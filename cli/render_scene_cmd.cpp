@@ -8,6 +8,7 @@
 
 #include "render_cmd.h"
 #include "stf/core/h5io.h"
+#include "stf/render/pack_recipe.h"
 #include "stf/render/scene_geometry.h"
 #include "stf/render/scene_paths.h"
 #include "stf/scene/render_scene.h"
@@ -15,30 +16,6 @@
 namespace stf::cli {
 
 namespace {
-
-const char* const kChannel[3] = {"R", "G", "B"};
-
-// The pack a scene's strides need: every object's medium in every channel, spheres from the
-// smallest that pays to the largest that fits in the object (the plan shares equal spheres).
-scene::Scene stride_scene(const scene::RenderScene& sc, const render::SceneGeometry& geometry, const RenderOptions& o) {
-  scene::Scene pack;
-  pack.path = sc.path;
-  pack.settings = render_pack_settings(o.tolerance, o.model);
-  pack.settings.tau_skip = HUGE_VAL;
-  for (std::size_t i = 0; i < sc.objects.size(); ++i) {
-    const scene::MediumSpec& m = sc.media[std::size_t(sc.objects[i].medium)];
-    for (std::size_t c = 0; c < 3; ++c) {
-      const Medium channel{m.sigma_s[c], m.sigma_a[c], m.g[c], 1};
-      const render::PackLadder l = render::stride_ladder(channel, geometry.largest_free_radius(int(i)));
-      if (l.radius_max < l.radius_min) continue;
-      pack.settings.tau_skip = std::min(pack.settings.tau_skip, l.smallest);
-      pack.settings.tau_ratio = l.ratio;
-      pack.media.push_back({fmt::format("{} ({})", m.name, kChannel[c]), channel.sigma_s, channel.sigma_a, channel.g,
-                            l.radius_min, l.radius_max, sc.objects[i].line});
-    }
-  }
-  return pack;
-}
 
 void write_scene_image(AtomicOutput& out, const render::Image& image, const RenderOptions& o, const render::ImageSettings& s) {
   H5::Exception::dontPrint();
@@ -121,7 +98,7 @@ void run_scene_render(const RenderOptions& o, const CLI::App& cmd) {
   PackBuild build;
   std::vector<PackEntry> pack;
   if (o.method == "stf") {
-    const scene::Scene needed = stride_scene(sc, *geometry, o);
+    const scene::Scene needed = render::scene_pack_recipe(sc, *geometry, render_pack_settings(o));
     if (!o.pack.empty()) pack = read_pack_option(o.pack);
     else if (!needed.media.empty()) pack = build_pack(needed, o, s.run.threads, build);
   }

@@ -39,6 +39,7 @@ void run_pack(const PackOptions& o) {
   for (std::size_t i = 0; i < o.models.size(); ++i) {
     if (fit::file_format(o.models[i]) != "stf-model") fail("'" + o.models[i] + "' is not an stf model");
     entries.push_back({o.names.empty() ? "" : o.names[i], fit::read_model(o.models[i])});
+    if (o.names.empty()) entries.back().name = medium_name(entries.back().model.albedo, entries.back().model.g);
     if (!entries.back().model.has_medium())
       fail("'" + o.models[i] + "' carries no medium (its table named none), and a pack needs one (tau, albedo, g): "
            "import the histogram with --sigma-s, --sigma-a and --g and fit it again");
@@ -51,6 +52,7 @@ void run_pack(const PackOptions& o) {
              entries[i].name + "'); a renderer could not tell them apart: give each its own --name");
     }
   }
+  if (std::string why = pack_entries_error(entries); !why.empty()) fail("--name: " + why);
   write_file(out, write_pack(entries));
 }
 
@@ -141,7 +143,7 @@ void add_pack_command(CLI::App& app) {
   auto o = std::make_shared<PackOptions>();
   CLI::App* cmd = app.add_subcommand("pack", "Pack fitted models into one compact binary file for the sampler");
   cmd->add_option("models", o->models, "Fitted models (HDF5)")->required();
-  cmd->add_option("--name", o->names, "A name per model (e.g. the medium's)");
+  cmd->add_option("--name", o->names, "A name per model (default: its medium, \"albedo A g G\"); one name stands for one medium");
   cmd->add_option("-o,--output", o->output, "Output pack")->required();
   cmd->callback([o] { run_pack(*o); });
 }

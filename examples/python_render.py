@@ -5,8 +5,10 @@ It renders the scene of `stf render` (a sphere of medium at the origin, a pinhol
 standard error: paths jump through the largest precomputed sphere that fits around them and
 track single collisions only near the boundary, where none fits (docs/python.md).
 
-    PYTHONPATH=build/python /usr/bin/python3 examples/python_render.py PACK MEDIUM \\
+    PYTHONPATH=build/python /usr/bin/python3 examples/python_render.py PACK \\
         SIGMA_S SIGMA_A G RADIUS [PATHS]
+
+The pack's spheres are those of the medium's albedo sigma_s / (sigma_s + sigma_a) and g.
 """
 import sys
 
@@ -77,12 +79,13 @@ def render_mean(spheres, sigma_s, sigma_a, g, radius, paths, seed=1):
 
 
 def main():
-    if len(sys.argv) not in (7, 8):
+    if len(sys.argv) not in (6, 7):
         sys.exit(__doc__)
-    pack, medium = stf.Pack(sys.argv[1]), sys.argv[2]
-    sigma_s, sigma_a, g, radius = map(float, sys.argv[3:7])
-    paths = int(float(sys.argv[7])) if len(sys.argv) == 8 else 100000
-    mean, error = render_mean(pack.spheres(medium), sigma_s, sigma_a, g, radius, paths)
+    pack = stf.Pack(sys.argv[1])
+    sigma_s, sigma_a, g, radius = map(float, sys.argv[2:6])
+    paths = int(float(sys.argv[6])) if len(sys.argv) == 7 else 100000
+    spheres = pack.spheres(albedo=sigma_s / (sigma_s + sigma_a), g=g)
+    mean, error = render_mean(spheres, sigma_s, sigma_a, g, radius, paths)
     print(f"mean radiance {mean:.5f} +- {error:.5f} ({paths} paths)")
 
 

@@ -24,6 +24,7 @@ namespace {
 struct Medium {
   double sigma_s, sigma_a, g, radius;
   double sigma_t() const { return sigma_s + sigma_a; }
+  double albedo() const { return sigma_s / sigma_t(); }
 };
 
 using Uniform = std::uniform_real_distribution<double>;
@@ -45,13 +46,13 @@ stf::Vec3 scatter(const stf::Vec3& w, double g, double u0, double u1) {
 // One camera path entering at the sphere's near pole heading +z; returns the radiance it
 // carries out (sky 1), counting the strides taken. `pack` empty: direct tracking only.
 double trace(const Medium& m, const std::vector<stf::PackEntry>& pack, const std::vector<stf::StrideForm>& forms,
-             const std::string& name, std::mt19937_64& rng, long& strides) {
+             std::mt19937_64& rng, long& strides) {
   Uniform u(0.0, 1.0);
   stf::Vec3 x{0, 0, -m.radius}, w{0, 0, 1};
   double throughput = 1;
   for (;;) {
     double r = 0;
-    const stf::PackEntry* e = pack.empty() ? nullptr : stf::find_entry(pack, name, m.sigma_t(), m.radius - stf::length(x), r);
+    const stf::PackEntry* e = pack.empty() ? nullptr : stf::find_entry(pack, m.albedo(), m.g, m.sigma_t(), m.radius - stf::length(x), r);
     if (e) {
       const stf::StrideForm& s = forms[std::size_t(e - pack.data())];
       const stf::Stride exit = s.jump(x, w, r, [&] { return u(rng); });
@@ -75,8 +76,8 @@ double trace(const Medium& m, const std::vector<stf::PackEntry>& pack, const std
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc != 8) {
-    std::fprintf(stderr, "usage: render_medium PACK MEDIUM SIGMA_S SIGMA_A G RADIUS PATHS\n");
+  if (argc != 7) {
+    std::fprintf(stderr, "usage: render_medium PACK SIGMA_S SIGMA_A G RADIUS PATHS\n");
     return 2;
   }
   std::vector<stf::PackEntry> pack;
@@ -85,13 +86,14 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "render_medium: %s\n", error.c_str());
     return 1;
   }
-  const std::string name = argv[2];
-  const Medium m{std::atof(argv[3]), std::atof(argv[4]), std::atof(argv[5]), std::atof(argv[6])};
-  const long paths = std::atol(argv[7]);
-  bool known = false;
-  for (const stf::PackEntry& e : pack) known = known || e.name == name;
-  if (!known || !(m.sigma_t() > 0 && m.radius > 0 && paths > 1)) {
-    std::fprintf(stderr, "render_medium: no medium '%s' in the pack, or a bad number\n", name.c_str());
+  const Medium m{std::atof(argv[2]), std::atof(argv[3]), std::atof(argv[4]), std::atof(argv[5])};
+  const long paths = std::atol(argv[6]);
+  double radius = 0;
+  // The pack's spheres are found by the medium (albedo, g), never by a name.
+  const bool known = m.sigma_t() > 0 && stf::find_entry(pack, m.albedo(), m.g, m.sigma_t(), m.radius, radius);
+  if (!known || !(m.radius > 0 && paths > 1)) {
+    std::fprintf(stderr, "render_medium: no sphere of %s in the pack, or a bad number\n",
+                 stf::medium_name(m.albedo(), m.g).c_str());
     return 2;
   }
   std::vector<stf::StrideForm> forms;  // built once: each model's draw resolved for strides
@@ -102,7 +104,7 @@ int main(int argc, char** argv) {
     long strides = 0;
     double sum = 0, sum2 = 0;
     for (long p = 0; p < paths; ++p) {
-      const double L = trace(m, strided ? pack : std::vector<stf::PackEntry>{}, forms, name, rng, strides);
+      const double L = trace(m, strided ? pack : std::vector<stf::PackEntry>{}, forms, rng, strides);
       sum += L, sum2 += L * L;
     }
     const double mean = sum / double(paths);

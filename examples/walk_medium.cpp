@@ -11,6 +11,7 @@
 #include <stf/pack.h>
 #include <stf/sampler.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
@@ -28,12 +29,14 @@ int main(int argc, char** argv) {
     return 1;
   }
   const std::string medium = argc > 2 ? argv[2] : pack.front().name;
-  bool known = false;
-  for (const stf::PackEntry& e : pack) known = known || e.name == medium;
-  if (!known) {
+  // A name stands for one medium in a pack (stf::pack_entries_error); its spheres are then
+  // found by that medium's albedo and g.
+  const auto named = std::find_if(pack.begin(), pack.end(), [&](const stf::PackEntry& e) { return e.name == medium; });
+  if (named == pack.end()) {
     std::fprintf(stderr, "walk_medium: the pack has no medium '%s' (usage: walk_medium PACK [MEDIUM] ...)\n", medium.c_str());
     return 2;
   }
+  const double albedo = named->model.albedo, g = named->model.g;
   const double sigma_t = argc > 3 ? std::atof(argv[3]) : 10.0;
   const double big_radius = argc > 4 ? std::atof(argv[4]) : 20.0;
   const int paths = argc > 5 ? std::atoi(argv[5]) : 1000;
@@ -47,7 +50,7 @@ int main(int argc, char** argv) {
   for (int p = 0; p < paths; ++p) {
     stf::Vec3 x{0, 0, 0}, w{0, 0, 1};
     double weight = 1, radius = 0;
-    while (const stf::PackEntry* e = stf::find_entry(pack, medium, sigma_t, big_radius - stf::length(x), radius)) {
+    while (const stf::PackEntry* e = stf::find_entry(pack, albedo, g, sigma_t, big_radius - stf::length(x), radius)) {
       const stf::ShellSampler& sampler = samplers.at(e);
       stf::WorldExit exit = sampler.sample_world(x, w, radius, u(rng), u(rng), u(rng), u(rng));
       x = exit.point;

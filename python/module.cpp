@@ -91,9 +91,9 @@ class Model {
 // The spheres of one medium of a pack, as a renderer strides through them (stf.Spheres).
 class Spheres {
  public:
-  Spheres(const std::vector<PackEntry>& pack, const std::string& name)
-      : lookup_(std::make_shared<SphereLookup>(pack, name)) {
-    if (lookup_->size() == 0) throw Error("the pack holds no sphere of medium '" + name + "'");
+  Spheres(const std::vector<PackEntry>& pack, double albedo, double g)
+      : lookup_(std::make_shared<SphereLookup>(pack, albedo, g)) {
+    if (lookup_->size() == 0) throw Error("the pack holds no sphere of the medium " + medium_name(albedo, g));
   }
   int size() const { return lookup_->size(); }
 
@@ -176,20 +176,25 @@ class Pack {
   const std::string& name(py::ssize_t i) const { return entries_[std::size_t(i)].name; }
   const Model& model(py::ssize_t i) const { return models_[std::size_t(i)]; }
 
-  // The entry of this albedo and g (relative difference below 1e-9) with the largest tau not
-  // above `tau`: the sphere a renderer uses where tau fits; None when there is none.
+  // The entry of this albedo and g (stf::same_medium: as stored, to 1e-9 relative) with the
+  // largest tau not above `tau`: the sphere a renderer uses where tau fits; None when there is none.
   std::optional<Model> find(double tau, double albedo, double g) const {
     const Model* best = nullptr;
-    auto close = [](double a, double b) {
-      return std::abs(a - b) <= 1e-9 * std::max(1.0, std::abs(b));
-    };
     for (const Model& m : models_)
-      if (close(m.model().albedo, albedo) && close(m.model().g, g) &&
-          m.model().tau <= tau * (1 + 1e-12) && (!best || m.model().tau > best->model().tau))
+      if (same_medium(m.model(), albedo, g) && m.model().tau <= tau * (1 + 1e-12) &&
+          (!best || m.model().tau > best->model().tau))
         best = &m;
     return best ? std::optional<Model>(*best) : std::nullopt;
   }
-  Spheres spheres(const std::string& name) const { return Spheres(entries_, name); }
+  Spheres spheres(double albedo, double g) const { return Spheres(entries_, albedo, g); }
+  // The media of the pack's entries, each once, in pack order: (albedo, g) as stored.
+  std::vector<std::pair<double, double>> media() const {
+    std::vector<std::pair<double, double>> seen;
+    for (const PackEntry& e : entries_)
+      if (std::none_of(seen.begin(), seen.end(), [&](const auto& m) { return same_medium(e.model, m.first, m.second); }))
+        seen.emplace_back(e.model.albedo, e.model.g);
+    return seen;
+  }
 
  private:
   std::vector<PackEntry> entries_;
@@ -273,8 +278,7 @@ void add_model(py::module_& m) {
         if (!instance->get_value_and_holder(py::detail::get_type_info(typeid(Model))).holder_constructed())
           return std::string("<stf.Model, not constructed>");
         const stf::StfModel& m = self<Model>(p).model();
-        return "<stf.Model tau " + std::to_string(m.tau) + " albedo " + std::to_string(m.albedo) + " g " +
-               std::to_string(m.g) + ">";
+        return "<stf.Model tau " + stf::round_trip(m.tau) + " " + stf::medium_name(m.albedo, m.g) + ">";
       });
 }
 
@@ -306,7 +310,9 @@ void add_pack(py::module_& m) {
            })
       .def("find", checked(&Pack::find), py::arg("tau"), py::arg("albedo"), py::arg("g"),
            "The entry of this albedo and g with the largest tau not above tau, or None")
-      .def("spheres", checked(&Pack::spheres), py::arg("name"), "The spheres of the medium `name`");
+      .def("spheres", checked(&Pack::spheres), py::kw_only(), py::arg("albedo"), py::arg("g"),
+           "The spheres of the medium of this albedo and g (as find matches them)")
+      .def_property_readonly("media", checked(&Pack::media), "The (albedo, g) of the pack's media, each once");
 }
 
 }  // namespace

@@ -103,9 +103,8 @@ ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geo
       if (same != built.end()) {
         lookup = same->second;
       } else if (pack) {
-        Medium channel{spec.sigma_s[std::size_t(c)], spec.sigma_a[std::size_t(c)], m.g, 1};
-        const std::vector<PackEntry> mine = entries_for(channel, *pack);
-        if (!mine.empty()) lookup = std::make_shared<SphereLookup>(mine, mine.front().name);
+        lookup = std::make_shared<SphereLookup>(*pack, m.albedo, m.g);
+        if (lookup->size() == 0) lookup.reset();
         built.push_back({{m.albedo, m.g}, lookup});
       }
       m.refresh_below = std::log(0.5 / kShadowRoulette) * m.inv_sigma_t;

@@ -11,10 +11,6 @@ namespace stf::render {
 
 namespace {
 
-const std::string kMediumName = "render";
-
-bool close(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(1.0, std::abs(b)); }
-
 // w' at polar cosine `c` (sine `s`) and azimuth 2 pi u about w.
 Vec3 turn(const Vec3& w, double c, double s, double u) {
   double sp, cp;
@@ -101,15 +97,8 @@ PackLadder stride_ladder(const Medium& m, double room) {
   return {smallest, kSphereRatio, smallest / sigma_t, std::min(room, kLargestSphere / sigma_t)};
 }
 
-std::vector<PackEntry> entries_for(const Medium& m, const std::vector<PackEntry>& pack) {
-  std::vector<PackEntry> mine;
-  for (const PackEntry& e : pack)
-    if (close(e.model.albedo, m.albedo()) && close(e.model.g, m.g)) mine.push_back({kMediumName, e.model});
-  return mine;
-}
-
 ShellStrides::ShellStrides(const Medium& m, const std::vector<PackEntry>& pack)
-    : walk_(m), spheres_(entries_for(m, pack), kMediumName) {
+    : walk_(m), spheres_(pack, m.albedo(), m.g) {
   for (int i = 0; i < spheres_.size(); ++i) {
     const double r = spheres_.tau(i) / m.sigma_t(), room = m.radius - r;
     radius_.push_back(r);

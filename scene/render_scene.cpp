@@ -108,8 +108,7 @@ LightSpec read_light(const toml::value& t, const std::string& scene_path) {
     l.environment_scale = bounded(t, "environment_scale", "light.", 0, 1e9);
   }
   if (t.contains("sky")) l.sky = rgb(t.at("sky"), "light.sky", 0, 1e6);
-  l.sun_direction = t.contains("sun_direction") ? direction(t.at("sun_direction"), "light.sun_direction")
-                                                : normalize(l.sun_direction);
+  if (t.contains("sun_direction")) l.sun_direction = direction(t.at("sun_direction"), "light.sun_direction");
   if (t.contains("sun_radiance")) l.sun = rgb(t.at("sun_radiance"), "light.sun_radiance", 0, 1e9);
   if (t.contains("sun_angle")) l.sun_angle = bounded(t, "sun_angle", "light.", 0.05, 45);
   return l;
@@ -188,6 +187,8 @@ const toml::array& array_at(const toml::value& root, const std::string& key, con
 }
 
 }  // namespace
+
+bool is_render_scene(const std::string& path) { return parse_toml(path).contains("objects"); }
 
 RenderScene read_render_scene(const std::string& path) {
   const toml::value root = parse_toml(path);

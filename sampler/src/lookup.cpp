@@ -4,20 +4,20 @@
 
 namespace stf {
 
-const PackEntry* find_entry(const std::vector<PackEntry>& pack, const std::string& name, double sigma_t,
+const PackEntry* find_entry(const std::vector<PackEntry>& pack, double albedo, double g, double sigma_t,
                             double free_radius, double& radius) {
   const double fits = sigma_t * free_radius;
   const PackEntry* best = nullptr;
-  // Names are compared last: this runs once per path vertex, and most entries fail on tau.
+  // The medium is compared last: this runs once per path vertex, and most entries fail on tau.
   for (const PackEntry& e : pack)
-    if (e.model.tau <= fits && (!best || e.model.tau > best->model.tau) && e.name == name) best = &e;
+    if (e.model.tau <= fits && (!best || e.model.tau > best->model.tau) && same_medium(e.model, albedo, g)) best = &e;
   radius = best ? best->model.tau / sigma_t : 0;
   return best;
 }
 
-SphereLookup::SphereLookup(const std::vector<PackEntry>& pack, const std::string& name) {
+SphereLookup::SphereLookup(const std::vector<PackEntry>& pack, double albedo, double g) {
   for (std::size_t i = 0; i < pack.size(); ++i)
-    if (pack[i].name == name) pack_index_.push_back(i);
+    if (same_medium(pack[i].model, albedo, g)) pack_index_.push_back(i);
   const auto tau = [&](std::size_t i) { return pack[i].model.tau; };
   // Of equal taus find_entry keeps the first in pack order: sort stably, keep the first of each.
   std::stable_sort(pack_index_.begin(), pack_index_.end(), [&](std::size_t a, std::size_t b) { return tau(a) < tau(b); });

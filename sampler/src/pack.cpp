@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <stdexcept>
 
 #include "stf/sh.h"
 #include "stf/tilt.h"
@@ -103,6 +104,7 @@ std::int64_t record_bytes(const StfModel& m, std::size_t name_bytes) {
 }
 
 std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries) {
+  if (std::string why = pack_entries_error(entries); !why.empty()) throw std::invalid_argument(why);
   Writer payload;
   for (const PackEntry& e : entries) {
     const StfModel& m = e.model;

@@ -75,6 +75,29 @@ TEST_F(SceneRenderCli, IdealStridesDrawTheBruteForceImage) {
   for (int c = 0; c < 3; ++c) EXPECT_LT(std::abs(r.mean_z[std::size_t(c)]), 4.5) << c;
 }
 
+// One scene format: `stf build SCENE.toml` on a render scene builds the pack `stf render` uses.
+// After the build, the render finds every sphere in the cache (it computes none), and its image
+// is bit for bit the image drawn through the built pack.
+TEST_F(SceneRenderCli, BuildOfARenderSceneIsThePackTheRenderUses) {
+  const std::string settings = " --tolerance 0.3 --model vmf:auto --cache " + out("cache");
+  Result b = stf("build " + scene() + settings + " --quiet -o " + out("p.stfpack"));
+  ASSERT_EQ(b.status, 0) << b.err;
+  const std::string common = "render " + scene() + " --method stf --spp 4 --width 12 --height 12 --quiet ";
+  Result r = stf(common + settings + " -o " + out("a.h5") + " --json " + out("a.json"));
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::ifstream json(out("a.json"));
+  const std::string stats((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+  EXPECT_NE(stats.find("\"spheres_computed\": 0,"), std::string::npos) << stats;
+  EXPECT_EQ(stats.find("\"strides\": 0,"), std::string::npos) << stats;
+  ASSERT_EQ(stf(common + "--pack " + out("p.stfpack") + " -o " + out("b.h5")).status, 0);
+  EXPECT_EQ(read_rgb(out("a.h5"), 12, 12).mean, read_rgb(out("b.h5"), 12, 12).mean);
+  // A recipe sets its own tolerance and model.
+  std::ofstream(out("recipe.toml")) << "[[media]]\nname = \"m\"\nsigma_s = 8\nsigma_a = 0.1\ng = 0.5\nsize = 1\n";
+  Result refused = stf("build " + out("recipe.toml") + " --tolerance 0.3 --plan-only");
+  EXPECT_EQ(refused.status, 2);
+  EXPECT_NE(refused.err.find("[settings]"), std::string::npos) << refused.err;
+}
+
 TEST_F(SceneRenderCli, WritesRgbLayoutAndImages) {
   Result r = stf("render " + scene() + " --spp 3 --width 10 --height 6 --method brute --quiet -o " + out("i.h5") +
                  " --exr " + out("i.exr") + " --png " + out("i.png"));

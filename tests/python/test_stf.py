@@ -186,7 +186,17 @@ class Stf(unittest.TestCase):
         self.assertAlmostEqual(pack.find(tau=500, albedo=0.8, g=0.3).tau, 5)
         self.assertIsNone(pack.find(tau=2, albedo=0.8, g=0.3))
         self.assertIsNone(pack.find(tau=5, albedo=0.9, g=0.3))
-        self.assertEqual(len(pack.spheres("a")), 2)
+        self.assertEqual(len(pack.spheres(albedo=0.8, g=0.3)), 2)
+        self.assertEqual(pack.media, [(0.8, 0.3)])
+
+    def test_repr_prints_digits_find_reads_back(self):
+        """What repr shows finds the entry again: every digit the pack stores is printed."""
+        pack = stf.Pack(self.path("p.stfpack"))
+        for _, model in pack:
+            fields = repr(model).strip("<>").split()
+            tau, albedo, g = (float(fields[i + 1]) for i in (fields.index("tau"), fields.index("albedo"), fields.index("g")))
+            self.assertEqual((tau, albedo, g), (model.tau, model.albedo, model.g))
+            self.assertEqual(pack.find(tau=tau, albedo=albedo, g=g).tau, model.tau)
 
     def test_world_jumps_are_model_draws_moved_and_turned(self):
         n = 1000
@@ -196,7 +206,7 @@ class Stf(unittest.TestCase):
         u = rng.random((n, 4))
         e = self.model.sample_world(x, w, np.full(n, 2.0), u)
         self.assertTrue(np.allclose(np.linalg.norm(e["exit_point"] - x, axis=1), 2.0))
-        spheres = stf.Pack(self.path("p.stfpack")).spheres("a")
+        spheres = stf.Pack(self.path("p.stfpack")).spheres(albedo=0.8, g=0.3)
         j = spheres.jump(x, w, np.r_[np.full(n // 2, 0.4), np.full(n - n // 2, 0.6)], 5.0, u)
         self.assertTrue(np.all(j["sphere"][: n // 2] == -1))  # tau 2.5 needs a free radius of 0.5
         self.assertTrue(np.array_equal(j["point"][: n // 2], x[: n // 2]))
@@ -206,7 +216,7 @@ class Stf(unittest.TestCase):
     def test_strides_of_the_stride_form_draw_what_jumps_draw(self):
         n = 200000
         x, w, free = np.zeros((n, 3)), np.tile([0.0, 0.0, 1.0], (n, 1)), np.full(n, 0.6)
-        spheres = stf.Pack(self.path("p.stfpack")).spheres("a")
+        spheres = stf.Pack(self.path("p.stfpack")).spheres(albedo=0.8, g=0.3)
         j = spheres.jump(x, w, free, 5.0, np.random.default_rng(3).random((n, 4)))
         s = spheres.stride(x, w, free, 5.0, seed=4)
         again = spheres.stride(x, w, free, 5.0, seed=4, threads=3)
@@ -239,8 +249,10 @@ class Stf(unittest.TestCase):
             self.model.pdf(np.zeros((4, 3)), np.zeros((4, 2)))
         with self.assertRaisesRegex(stf.Error, "n .* must be a whole number in 0"):
             self.model.sample(-1)
-        with self.assertRaisesRegex(stf.Error, "no sphere of medium 'b'"):
-            stf.Pack(self.path("p.stfpack")).spheres("b")
+        with self.assertRaisesRegex(stf.Error, "no sphere of the medium albedo 0.9 g 0.3"):
+            stf.Pack(self.path("p.stfpack")).spheres(albedo=0.9, g=0.3)
+        with self.assertRaises(TypeError):  # by medium, never by name
+            stf.Pack(self.path("p.stfpack")).spheres("a")
 
     def paths(self, n=4):
         """n paths at the origin heading +z, spheres of radius 2 about them, uniforms in [0, 1)."""
@@ -250,7 +262,7 @@ class Stf(unittest.TestCase):
     def test_uniforms_off_zero_to_one_are_refused(self):
         self.assertTrue(issubclass(stf.Error, ValueError))
         x, w, r, u = self.paths()
-        spheres = stf.Pack(self.path("p.stfpack")).spheres("a")
+        spheres = stf.Pack(self.path("p.stfpack")).spheres(albedo=0.8, g=0.3)
         for bad in (np.nan, np.inf, -np.inf, -1e300, 1e300, 1.0, -1.0):
             one = u.copy()
             one[2, 1] = bad
@@ -266,7 +278,7 @@ class Stf(unittest.TestCase):
         finite), sigma_t not finite and > 0: for sample_world, jump and stride."""
         x, w, r, u = self.paths()
         free, nan, inf = np.full(4, 0.6), np.nan, np.inf
-        spheres = stf.Pack(self.path("p.stfpack")).spheres("a")
+        spheres = stf.Pack(self.path("p.stfpack")).spheres(albedo=0.8, g=0.3)
         cases = [("positions", with_value(x, (3, 0), bad), w, r, free, 5.0) for bad in (nan, inf, -inf)]
         cases += [("directions", x, with_value(w, 1, bad), r, free, 5.0)
                   for bad in ([0, 0, 2.0], [0, 0, 0.0], [nan, 0, 1.0], [0.5, 0.5, 0.5])]
@@ -291,14 +303,14 @@ class Stf(unittest.TestCase):
         e = self.model.sample_world(x, w, r, u)
         self.assertTrue(np.allclose(np.linalg.norm(e["exit_point"] - x, axis=1), 2.0))
         # A free radius of 0, or just below as rounding leaves it on a sphere's surface, fits no sphere.
-        j = stf.Pack(self.path("p.stfpack")).spheres("a").jump(x, w, np.array([0.0, -1e-15, 0.6, 0.6]), 5.0, u)
+        j = stf.Pack(self.path("p.stfpack")).spheres(albedo=0.8, g=0.3).jump(x, w, np.array([0.0, -1e-15, 0.6, 0.6]), 5.0, u)
         self.assertEqual(list(j["sphere"]), [-1, -1, 0, 0])
 
     def test_objects_never_constructed_raise_stf_error(self):
         """stf.Model.__new__(stf.Model) and the like, without __init__: not a crash."""
         uses = {"Model": ["m.sample(3)", "m.tau", "m.escape_probability", "m.family", "m.alpha_edges",
                           "m.pdf(x, w)", "m.sample_world(x, w, r, u)"],
-                "Pack": ["len(p)", "p.find(tau=1, albedo=0.8, g=0.3)", "p[0]", "p.spheres('a')"],
+                "Pack": ["len(p)", "p.find(tau=1, albedo=0.8, g=0.3)", "p[0]", "p.spheres(albedo=0.8, g=0.3)"],
                 "Spheres": ["len(s)", "s.jump(x, w, r, 1.0, u)", "s.stride(x, w, r, 1.0, seed=1)"]}
         for kind, exprs in uses.items():
             with self.subTest(kind):
@@ -371,7 +383,7 @@ class Stf(unittest.TestCase):
             image, variance = f["image/mean"][()], f["image/variance_of_mean"][()]
         sys.path.insert(0, os.path.join(SOURCE, "examples"))
         import python_render
-        mean, error = python_render.render_mean(stf.Pack(self.path("fog.stfpack")).spheres("fog"), 8, 0.2, 0.6, 2, 200000)
+        mean, error = python_render.render_mean(stf.Pack(self.path("fog.stfpack")).spheres(albedo=8 / 8.2, g=0.6), 8, 0.2, 0.6, 2, 200000)
         render_error = math.sqrt(variance.sum()) / image.size
         self.assertLess(abs(mean - image.mean()), 4.5 * math.hypot(error, render_error))
 

@@ -177,6 +177,18 @@ TEST_F(SceneRender, StridesWithoutSpheresAreBruteForceBitForBit) {
 }
 
 // Each bad scene: the message names the file and the key, and holds the word that says why.
+// A scene without a [light] table gets the default sun as a unit direction, as one that names
+// it does (an unnormalised default once made its brute-force images 21x too bright).
+TEST_F(SceneRender, TheDefaultSunIsAUnitDirection) {
+  const std::string scene = "[[media]]\nname = \"m\"\npreset = \"milk\"\n[[objects]]\nshape = \"sphere\"\nmedium = \"m\"\n";
+  const scene::RenderScene bare = scene::read_render_scene(write("bare.toml", scene));
+  const scene::RenderScene named =
+      scene::read_render_scene(write("named.toml", scene + "[light]\nsun_direction = [1, 1, -1]\n"));
+  EXPECT_NEAR(length(bare.light.sun_direction), 1, 1e-15);
+  EXPECT_DOUBLE_EQ(bare.light.sun_direction.x, named.light.sun_direction.x);
+  EXPECT_DOUBLE_EQ(bare.light.sun_direction.z, named.light.sun_direction.z);
+}
+
 TEST_F(SceneRender, BadScenesAreRefusedNamingFileAndKey) {
   std::ofstream(dir_ / "open.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\n";
   const std::string medium = "[[media]]\nname = \"m\"\nsigma_s = 1\nsigma_a = 0.1\ng = 0.5\n";

@@ -183,29 +183,55 @@ TEST_F(SceneTest, LookupPicksTheLargestSphereThatFits) {
   std::string error;
   ASSERT_TRUE(read_pack_file(pack_path, pack, error)) << error;
   double radius = 0;
-  // a: sigma_t = 11. Free radius 0.5 fits tau 5.5: the tau 4 sphere, radius 4 / 11.
-  const PackEntry* e = find_entry(pack, "a", 11, 0.5, radius);
+  // a: sigma_t = 11, albedo 10 / 11, g 0.5. Free radius 0.5 fits tau 5.5: the tau 4 sphere, radius 4 / 11.
+  const double a = 10.0 / 11;
+  const PackEntry* e = find_entry(pack, a, 0.5, 11, 0.5, radius);
   ASSERT_NE(e, nullptr);
   EXPECT_EQ(e->model.tau, 4);
   EXPECT_DOUBLE_EQ(radius, 4.0 / 11);
-  EXPECT_EQ(find_entry(pack, "a", 11, 100, radius)->model.tau, 8);
-  EXPECT_EQ(find_entry(pack, "a", 11, 0.1, radius), nullptr);  // tau 1.1: too close to the boundary
+  EXPECT_EQ(find_entry(pack, a, 0.5, 11, 100, radius)->model.tau, 8);
+  EXPECT_EQ(find_entry(pack, a, 0.5, 11, 0.1, radius), nullptr);  // tau 1.1: too close to the boundary
   EXPECT_EQ(radius, 0);
-  EXPECT_EQ(find_entry(pack, "thin", 0.5, 1, radius), nullptr);
-  EXPECT_EQ(find_entry(pack, "nobody", 1, 1, radius), nullptr);
+  EXPECT_EQ(find_entry(pack, 1.0, 0.0, 0.5, 1, radius), nullptr);  // thin: skipped
+  EXPECT_EQ(find_entry(pack, a, 0.4, 11, 1, radius), nullptr);     // another g
+  EXPECT_EQ(find_entry(pack, a * (1 - 1e-6), 0.5, 11, 1, radius), nullptr);  // another albedo
   // The inner-loop lookup gives the same sphere and radius at every free radius.
-  for (const char* name : {"a", "thin", "nobody"}) {
-    const SphereLookup lookup(pack, name);
+  for (const auto [albedo, g] : {std::pair{a, 0.5}, {1.0, 0.0}, {0.5, 0.5}}) {
+    const SphereLookup lookup(pack, albedo, g);
     for (double free = 0; free < 2; free += 0.01) {
       double r1 = -1, r2 = -1;
-      const PackEntry* expected = find_entry(pack, name, 11, free, r1);
+      const PackEntry* expected = find_entry(pack, albedo, g, 11, free, r1);
       const int i = lookup.find(11, free, r2);
-      EXPECT_EQ(i < 0 ? nullptr : &pack[lookup.pack_index(i)], expected) << name << " " << free;
+      EXPECT_EQ(i < 0 ? nullptr : &pack[lookup.pack_index(i)], expected) << albedo << " " << free;
       if (i >= 0) {
         EXPECT_EQ(lookup.sampler(i).model().tau, expected->model.tau);
       }
       EXPECT_EQ(r1, r2);
     }
+  }
+}
+
+// A lookup never mixes media: spheres of two albedos under one name (what `stf pack` of a
+// cache's models once gave) are refused when the pack is written, and a lookup by medium
+// finds only its own, whatever the entries are called.
+TEST_F(SceneTest, LookupsCannotMixMedia) {
+  const std::string cache = (dir_ / "cache").string(), pack_path = (dir_ / "s.stfpack").string();
+  Scene scene = read_scene(write("s.toml", kTiny));
+  scene.media[1].sigma_a = 4;  // albedo 20 / 24: another medium
+  build(scene, make_plan(scene, cache), pack_path, 2);
+  std::vector<PackEntry> pack;
+  std::string error;
+  ASSERT_TRUE(read_pack_file(pack_path, pack, error)) << error;
+  std::vector<PackEntry> unnamed = pack;
+  for (PackEntry& e : unnamed) e.name = "";
+  EXPECT_THROW(write_pack(unnamed), std::invalid_argument);
+  EXPECT_NE(pack_entries_error(unnamed).find("two media"), std::string::npos) << pack_entries_error(unnamed);
+  for (PackEntry& e : unnamed) e.name = medium_name(e.model.albedo, e.model.g);
+  EXPECT_EQ(pack_entries_error(unnamed), "");
+  for (const double albedo : {10.0 / 11, 20.0 / 24}) {
+    const SphereLookup lookup(pack, albedo, 0.5);
+    ASSERT_GT(lookup.size(), 0);
+    for (int i = 0; i < lookup.size(); ++i) EXPECT_DOUBLE_EQ(lookup.sampler(i).model().albedo, albedo);
   }
 }
 

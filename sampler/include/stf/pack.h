@@ -39,8 +39,28 @@ struct PackEntry {
   StfModel model;
 };
 
-// Serialises entries (models must have linear alpha bins on [0, pi]).
+// Whether `model` was precomputed for the medium of single-scattering albedo `albedo` and
+// Henyey-Greenstein asymmetry `g`: both agree to 1e-9 relative. A pack stores them as doubles,
+// so what was written matches itself; the slack covers an albedo recomputed as
+// sigma_s / (sigma_s + sigma_a) in another order. Spheres are looked up by medium, never by
+// name: a name cannot tell two media apart, and a sphere of another albedo is a wrong answer.
+bool same_medium(const StfModel& model, double albedo, double g);
+
+// Serialises entries (models must have linear alpha bins on [0, pi]). Throws
+// std::invalid_argument where pack_entries_error objects.
 std::vector<std::uint8_t> write_pack(const std::vector<PackEntry>& entries);
+
+// Why `entries` would mislead a reader of the pack, or "": entries under one name must be of
+// one medium (albedo and g, compared as same_medium does), so a name shown to a
+// user never stands for two media.
+std::string pack_entries_error(const std::vector<PackEntry>& entries);
+
+// A name for the medium (albedo, g) in the digits that read back to the same doubles, e.g.
+// "albedo 0.999042 g 0.85": what `stf pack` names entries given no --name.
+std::string medium_name(double albedo, double g);
+
+// `x` in the fewest digits that read back to the same double.
+std::string round_trip(double x);
 
 // Why read_pack would refuse a pack holding `entry` (it is written and read back: the pack
 // reader's own rules), or "" when it would not. Writers check before they write.

@@ -120,7 +120,4 @@ PackLadder pack_ladder(const Medium& m);
 // radius_max < radius_min when no sphere that pays fits.
 PackLadder stride_ladder(const Medium& m, double room);
 
-// Entries of `pack` computed for this medium's albedo and g (relative difference below 1e-9).
-std::vector<PackEntry> entries_for(const Medium& m, const std::vector<PackEntry>& pack);
-
 }  // namespace stf::render

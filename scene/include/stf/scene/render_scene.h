@@ -25,7 +25,7 @@ struct CameraSpec {
 
 struct LightSpec {
   Rgb sky{1, 1, 1};           // uniform radiance from every direction
-  Vec3 sun_direction{1, 1, -1};  // towards the sun, unit after reading
+  Vec3 sun_direction = normalize(Vec3{1, 1, -1});  // towards the sun, unit
   Rgb sun{50, 50, 50};        // radiance within the sun's disc, added to the sky's
   double sun_angle = 5;       // half-angle of the disc, degrees
   // A latitude-longitude map in place of the sky (docs/formats.md, "Render scene"), resolved against
@@ -64,6 +64,10 @@ struct RenderScene {
   std::vector<ObjectSpec> objects;
   GroundSpec ground;
 };
+
+// Whether the TOML file at `path` is a render scene (it has [[objects]]) rather than a pack
+// recipe (stf/scene/scene.h); throws SceneError where it is no TOML that stf reads.
+bool is_render_scene(const std::string& path);
 
 // Reads and checks a render scene; throws SceneError "file:line: key: why" (unknown keys,
 // values of the wrong type or range, unknown presets or media, missing mesh files).

@@ -1,10 +1,10 @@
 // The scene file: the media a renderer will use and how to precompute for them (TOML).
 //
-//   [settings]                 (all optional)
-//   paths = 1e6                paths per precomputed table
+//   [settings]                 (all optional; docs/formats.md, "Pack recipe")
+//   paths = 4e6                paths per precomputed table
 //   grid = "healpix:16"        direction cells
-//   alpha_bins = 90
-//   model = "vmf:4"            fit model
+//   alpha_bins = 45
+//   model = "hvmf:auto"        fit model
 //   seed = 1
 //   tau_skip = 2.0             media whose largest optical radius is below this are skipped
 //   tau_ratio = 2.0            ratio between neighbouring optical radii of a medium's family
@@ -32,11 +32,13 @@
 
 namespace stf::scene {
 
+// The defaults are `stf render`'s: what a render precomputes and what a recipe gets unless it
+// says otherwise (render/pack_recipe.h).
 struct Settings {
-  std::int64_t paths = 1'000'000;
+  std::int64_t paths = 4'000'000;
   std::string grid = "healpix:16";
-  int alpha_bins = 90;
-  std::string model = "vmf:4";
+  int alpha_bins = 45;
+  std::string model = "hvmf:auto";
   std::int64_t seed = 1;
   double tau_skip = 2;
   double tau_ratio = 2;
