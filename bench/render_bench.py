@@ -14,7 +14,9 @@ is (MSE_brute * seconds_brute) / (MSE_stf * seconds_stf) at the largest spp: for
 estimators error^2 * time is a constant of the method, so this is the ratio of the times the
 two need for the same error (render time only). The pack is built once through a cache
 (ascending tau, so the precompute seconds summed so far are those of the pack each tau needs)
-and `frames_to_pay_off` is the precompute time over the render time one frame saves.
+and `frames_to_pay_off` is the precompute time over the render time one frame saves (null, with
+`pays_off` false and `pay_off_note`, where the equal-error speed-up is not above 1: strides never
+pay).
 
 The bound (docs/render.md, "The bound: ideal strides"): build/bench/stride_bound follows the
 medium's camera paths with ideal strides on the render pack's ladder (its smallest and largest
@@ -59,6 +61,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "tools"))
 from stf_runs import Stf  # noqa: E402
 import render_pair  # noqa: E402
+from scene_bench import pay_off  # noqa: E402
 
 SIGMA_T = 100
 RATIO = 2  # between neighbouring spheres of stf render's packs (kSphereRatio, render/tracer.cpp)
@@ -199,8 +202,10 @@ def accumulate_precompute(rows):
         row["precompute_seconds"] = total[key]
         br = next(r for r in reversed(row["runs"]) if r["method"] == "brute")
         sr = next(r for r in reversed(row["runs"]) if r["method"] == "stf")
-        saved = br["seconds"] * (br["mse"] / sr["mse"]) - sr["seconds"] if sr["mse"] > 0 else 0
-        row["frames_to_pay_off"] = row["precompute_seconds"] / saved if saved > 0 else None
+        # Brute force's seconds at the strided frame's error, less the strided frame's.
+        speedup = row["speedup_equal_error"] or row["speedup_equal_variance"]
+        saved = sr["seconds"] * (speedup - 1) if speedup else 0
+        row.update(pay_off(row["precompute_seconds"], speedup, saved))
 
 
 def print_table(rows):
@@ -213,7 +218,7 @@ def print_table(rows):
         bound = (f"{row['bound_at_measured_cost']:.2f} ({row['stride_cost_collisions']:.2f})"
                  if "bound_at_measured_cost" in row else "n/a")
         fraction = f"{row['fraction_of_bound']:.2f}" if "fraction_of_bound" in row else "n/a"
-        frames = f"{row['frames_to_pay_off']:.1f}" if row["frames_to_pay_off"] else "n/a"
+        frames = f"{row['frames_to_pay_off']:.1f}" if row["pays_off"] else "never (speed-up <= 1)"
         print(f"| {row['tau']:g} | {row['albedo']:g} | {row['g']:g} | {br['seconds']:.3g} | {sr['seconds']:.3g} | "
               f"{speedup:.2f} | {bound} | {fraction} | {100 * row['mean_relative_difference']:+.2f}% | "
               f"{row['max_block_z']:.2f} | {row['precompute_seconds']:.0f} | {frames} |")

@@ -15,8 +15,9 @@ channels; for unbiased estimators variance * time is a constant of the method), 
 cost c in collisions measured in the strided run and the bound B / (C + c N) at it, the 4 x 4
 block z of their difference (max over channels, target <= 4.5), the per-channel mean ratio
 (target within 1%), the per-channel variance ratio and equal-error speed-up, rays per path by
-kind, and the frames of this size and spp the pack pays off in at equal error (none where
-strides do not pay). With --ideal, a
+kind, and the frames of this size and spp the pack pays off in at equal error (where the
+equal-error speed-up is not above 1, strides never pay: frames_to_pay_off null, pays_off false
+and pay_off_note saying so). With --ideal, a
 third run with ideal strides (stf render --ideal-strides: the true transport through each
 sphere) gives the shell collisions and strides of a perfect model, and the bound
 B / (C_ideal + c N_ideal) at the same c.
@@ -107,6 +108,18 @@ def per_path(stats, key):
     return stats[key] / stats["paths"]
 
 
+def pay_off(pack_seconds, speedup, saved):
+    """The frames whose saved render seconds (`saved` a frame) pay the pack's precompute off. Where
+    the equal-error speed-up is not above 1 strides never pay: frames_to_pay_off is None (null in
+    JSON), pays_off false, and pay_off_note says why."""
+    if speedup is None or not speedup > 1 or not saved > 0:
+        shown = "unknown" if speedup is None else f"{speedup:.3g}"
+        return {"frames_to_pay_off": None, "pays_off": False,
+                "pay_off_note": f"never: the equal-error speed-up is {shown} (not above 1), so a strided frame "
+                                "costs at least as much as a brute-force one at the same error"}
+    return {"frames_to_pay_off": pack_seconds / saved, "pays_off": True}
+
+
 def timed_pair(a, stf, scene, name, free_radius):
     """Both methods --repeats times in turns (the same seeds, so the same images); each run's
     seconds the median of its turns, as this machine's load comes and goes."""
@@ -134,7 +147,7 @@ def compare(a, stf, scene, name, free_radius, pack_seconds):
            "mean_ratio": [float(ms[..., c].mean() / mb[..., c].mean()) for c in range(3)],
            "mean_z": [float((ms[..., c].sum() - mb[..., c].sum()) / np.sqrt(vb[..., c].sum() + vs[..., c].sum()))
                       for c in range(3)],
-           "pack_seconds": pack_seconds, "frames_to_pay_off": pack_seconds / saved if saved > 0 else None,
+           "pack_seconds": pack_seconds, **pay_off(pack_seconds, speedup, saved),
            "brute_collisions_per_second": sb["collisions"] / sb["seconds"]}
     # The bound at the measured stride cost (docs/render.md): brute force's seconds per collision
     # price everything a path does; what the strided run spent beyond its collisions, per stride,

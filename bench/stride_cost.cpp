@@ -81,7 +81,7 @@ Vec3 sum(double a, const Vec3& u, double b, const Vec3& v) {
 // entry: a float threshold and an index) picks a sub-bin of exit angles and an equal-area cell
 // of exit directions about the exit normal; a uniform point of each, turned into the path's
 // frame. The table is random (what it draws is not a model): this is the arithmetic and the
-// memory traffic of such a draw, not its accuracy (bench/stride_tables.py measures that).
+// memory traffic of such a draw, not its accuracy (docs/studies/scripts/stride_tables.py measures that).
 class TableDrawFloor {
  public:
   TableDrawFloor(std::size_t bytes, std::uint64_t seed) {

@@ -1,6 +1,8 @@
 // `stf build`: plan a scene, compute what it needs (cached), pack it for the sampler.
 #include <CLI/CLI.hpp>
+#include <fmt/format.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <optional>
@@ -50,13 +52,15 @@ std::string cache_of(const BuildOptions& o) {
   return scene::is_render_scene(o.scene) && !shared.empty() ? shared : o.scene + ".cache";
 }
 
-// One line per entry that a tolerance build could not certify within the tolerance.
-void warn_unmet(const scene::Plan& plan, bool strict) {
+// One line per entry this build computed that it could not certify within the tolerance (once,
+// when built: a build that finds it cached counts it in the summary line only).
+void warn_unmet(const scene::Plan& before, const scene::Plan& plan, bool strict) {
   std::vector<const scene::PlanEntry*> unmet = scene::unmet_entries(plan);
   if (unmet.empty()) return;
   for (const scene::PlanEntry* e : unmet)
-    std::fprintf(stderr, "stf build: warning: tau %g albedo %g g %g (%s) is certified only within TV %.3g, not %g\n",
-                 e->tau, e->albedo, e->g, e->media.front().c_str(), e->resolution.tv_bound, plan.settings.tolerance);
+    if (scene::computed_by(before, *e))
+      std::fprintf(stderr, "stf build: warning: tau %g albedo %g g %g (%s) is certified only within TV %.3g, not %g\n",
+                   e->tau, e->albedo, e->g, e->media.front().c_str(), e->resolution.tv_bound, plan.settings.tolerance);
   int entries = 0;
   for (const scene::PlanEntry& e : plan.entries) entries += e.action != "skip";
   char summary_text[160];
@@ -97,18 +101,18 @@ void run_build(const BuildOptions& o, const CLI::App& cmd) {
   // Under mpirun every rank computes its share of the entries into the shared cache.
   int computed = 0;
   std::string failure;
+  SphereProgress progress(w.size > 1 ? "stf build: rank " + std::to_string(w.rank) : "stf build", o.quiet);
   try {
     computed = scene::compute_entries(
         plan, threads,
         [&](int i, int n, const scene::PlanEntry& e) {
-          if (o.quiet) return;
-          std::string rank = w.size > 1 ? " rank " + std::to_string(w.rank) : "";
-          std::fprintf(stderr, "stf build:%s [%d/%d] tau %g albedo %g g %g\n", rank.c_str(), i + 1, n, e.tau, e.albedo, e.g);
+          progress.start(i, n, fmt::format("tau {:g}, albedo {:g}, g {:g} ({})", e.tau, e.albedo, e.g, e.media.front()));
         },
         &interrupted, w.rank, w.size);
   } catch (const std::exception& e) {
     failure = e.what();
   }
+  progress.finish();
   if (any_rank(!failure.empty())) {
     stop_if_interrupted();  // Ctrl-C: say so (finished entries stay in the cache)
     // main() prints rank 0's errors only: another rank names its own here.
@@ -121,7 +125,7 @@ void run_build(const BuildOptions& o, const CLI::App& cmd) {
   // What was built, as the cache now holds it.
   scene::Plan built = scene::make_plan(sc, cache);
   pack->stage(bytes_of(scene::scene_pack(sc, built)));
-  warn_unmet(built, o.strict);
+  warn_unmet(plan, built, o.strict);
   pack->commit();
   if (o.json) std::fputs(scene::plan_json(built).c_str(), stdout);
   if (!o.quiet) std::fprintf(stderr, "stf build: computed %d entries, pack -> %s\n", computed, o.output.c_str());

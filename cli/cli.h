@@ -200,6 +200,23 @@ class ProgressBar {
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
 };
 
+// Progress over the spheres a pack needs, one call as each sphere starts: on a terminal one bar
+// over all spheres with the time left (from the seconds the finished ones took), else a line
+// per sphere saying the same. `command` heads the lines ("stf render").
+class SphereProgress {
+ public:
+  SphereProgress(std::string command, bool quiet);
+  ~SphereProgress() { finish(); }
+  void start(int index, int count, const std::string& sphere);
+  void finish();
+
+ private:
+  std::string command_;
+  bool quiet_, terminal_;
+  bool drawn_ = false;
+  const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+};
+
 // One status line on stderr, shown only when stderr is a terminal, for work done in named steps
 // of unknown number (a fit): the step, how much of it is done, the seconds so far. update() may
 // be called from any thread; a call that finds another drawing is dropped.
@@ -241,5 +258,6 @@ void add_eval_command(CLI::App& app);
 void add_render_command(CLI::App& app);
 void add_import_command(CLI::App& app);
 void add_smooth_command(CLI::App& app);
+void add_mesh_command(CLI::App& app);
 
 }  // namespace stf::cli

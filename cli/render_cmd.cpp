@@ -1,6 +1,7 @@
 // `stf render`: the test scene (stf/render/render_scene.h) by brute force or through shell strides, to
 // show that a renderer using stf gets the brute-force picture, and how much sooner.
 #include <CLI/CLI.hpp>
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <H5Cpp.h>
 
@@ -36,6 +37,23 @@ std::string cache_folder(const RenderOptions& o) {
   return folder;
 }
 
+// A plan entry as a person reads it: "tau 16, albedo 0.999042, g 0.85 (milk (G), ...)".
+std::string sphere_name(const scene::PlanEntry& e) {
+  std::string media;
+  for (const std::string& m : e.media) media += (media.empty() ? "" : ", ") + m;
+  return fmt::format("tau {:g}, albedo {:g}, g {:g} ({})", e.tau, e.albedo, e.g, media);
+}
+
+// A warning for each sphere this run computed that is certified only within a larger TV
+// distance than asked: once, when it is built, not on every render that finds it cached.
+void warn_unmet_once(const scene::Plan& before, const scene::Plan& built, double tolerance) {
+  for (const scene::PlanEntry* e : scene::unmet_entries(built)) {
+    if (scene::computed_by(before, *e))
+      std::fprintf(stderr, "stf render: warning: the sphere %s is certified only within TV %.3g, not %g\n",
+                   sphere_name(*e).c_str(), e->resolution.tv_bound, tolerance);
+  }
+}
+
 // `files` and `more` in one list.
 std::vector<NamedFile> with(std::vector<NamedFile> files, const std::vector<NamedFile>& more) {
   files.insert(files.end(), more.begin(), more.end());
@@ -57,21 +75,15 @@ std::vector<PackEntry> build_pack(const scene::Scene& sc, const RenderOptions& o
   require_writable_folder(cache, "--cache");
   const scene::Plan plan = scene::make_plan(sc, cache);
   try {
-    const auto told = [&](int i, int n, const scene::PlanEntry& e) {
-      if (!o.quiet)
-        std::fprintf(stderr, "stf render: precomputing [%d/%d] tau %g albedo %g g %g\n", i + 1, n, e.tau, e.albedo,
-                     e.g);
-    };
-    build.spheres_computed = scene::compute_entries(plan, threads, told, &interrupted);
+    SphereProgress progress("stf render", o.quiet);
+    build.spheres_computed = scene::compute_entries(
+        plan, threads, [&](int i, int n, const scene::PlanEntry& e) { progress.start(i, n, sphere_name(e)); }, &interrupted);
   } catch (const std::runtime_error&) {
     stop_if_interrupted();  // Ctrl-C: exit 130 (finished spheres stay in the cache)
     throw;
   }
   const scene::Plan built = scene::make_plan(sc, cache);  // now with the certified bounds
-  for (const scene::PlanEntry* e : scene::unmet_entries(built))
-    if (!o.quiet)
-      std::fprintf(stderr, "stf render: warning: the tau %g sphere is certified only within TV %.3g, not %g\n", e->tau,
-                   e->resolution.tv_bound, o.tolerance);
+  if (!o.quiet) warn_unmet_once(plan, built, o.tolerance);
   ScratchFile pack("pack");
   scene::write_scene_pack(sc, built, pack.path());
   std::vector<PackEntry> entries;
@@ -79,6 +91,12 @@ std::vector<PackEntry> build_pack(const scene::Scene& sc, const RenderOptions& o
   if (!read_pack_file(pack.path(), entries, error)) fail("the pack just built: " + error);
   build.seconds = seconds_since(start);
   return entries;
+}
+
+std::string precompute_words(const PackBuild& build) {
+  if (build.seconds <= 0) return "";
+  return fmt::format("; precompute {:.3g} s, {} sphere{} computed", build.seconds, build.spheres_computed,
+                     build.spheres_computed == 1 ? "" : "s");
 }
 
 std::vector<PackEntry> read_pack_option(const std::string& path) {
@@ -206,10 +224,10 @@ void run_sphere_render(const RenderOptions& o, const CLI::App& cmd) {
   outputs.finish(image, o.exposure, stats_json(image, build, strided));
   if (!o.quiet)
     std::fprintf(stderr,
-                 "stf render: %s, %lld paths in %.3g s (%.3g collisions, %.3g strides per path), mean radiance %.6g "
+                 "stf render: %s, %lld paths in %.3g s (%.3g collisions, %.3g strides per path%s), mean radiance %.6g "
                  "-> %s\n",
                  o.method.c_str(), (long long)image.paths, image.seconds, double(image.collisions) / double(image.paths),
-                 double(image.strides) / double(image.paths), image.mean_radiance(), o.output.c_str());
+                 double(image.strides) / double(image.paths), precompute_words(build).c_str(), image.mean_radiance(), o.output.c_str());
 }
 
 }  // namespace

@@ -53,6 +53,8 @@ render::ImageSettings image_settings(const RenderOptions& o, const CLI::App& cmd
 // returns its entries, and in `build` what building took.
 std::vector<PackEntry> build_pack(const scene::Scene& scene, const RenderOptions& o, int threads, PackBuild& build);
 std::vector<PackEntry> read_pack_option(const std::string& path);
+// "; precompute S s, N spheres computed" for the summary line; "" where no pack was built.
+std::string precompute_words(const PackBuild& build);
 
 // The settings of the packs renders build: scene::Settings' defaults with --tolerance and --model.
 scene::Settings render_pack_settings(const RenderOptions& o);

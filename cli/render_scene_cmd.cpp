@@ -114,9 +114,9 @@ void run_scene_render(const RenderOptions& o, const CLI::App& cmd) {
   write_scene_image(outputs.image, image, o, s);
   outputs.finish(image, o.exposure, scene_stats(image, build, *geometry));
   if (!o.quiet)
-    std::fprintf(stderr, "stf render: %s, %lld paths in %.3g s (%.3g collisions, %.3g strides per path), mean RGB %.4g %.4g %.4g -> %s\n",
+    std::fprintf(stderr, "stf render: %s, %lld paths in %.3g s (%.3g collisions, %.3g strides per path%s), mean RGB %.4g %.4g %.4g -> %s\n",
                  o.method.c_str(), (long long)image.paths, image.seconds, double(image.collisions) / double(image.paths),
-                 double(image.strides) / double(image.paths), image.mean_radiance(0), image.mean_radiance(1),
+                 double(image.strides) / double(image.paths), precompute_words(build).c_str(), image.mean_radiance(0), image.mean_radiance(1),
                  image.mean_radiance(2), o.output.c_str());
 }
 

@@ -76,14 +76,13 @@ nlohmann::ordered_json pack_media(const std::string& path, int n) {
     else if (e.model.tau > (*same)->model.tau) *same = &e;
   }
   if (chosen.empty()) fail(path + ": the pack holds no model");
+  // The entry's own name, empty where the pack has none (tools/report.py heads each medium with
+  // its name, if any, and its tau, albedo and g); no spec string, so any name passes through.
   nlohmann::ordered_json media = nlohmann::ordered_json::array();
   for (const PackEntry* e : chosen) {
     if (int(media.size()) == n) break;
     const StfModel& m = e->model;
-    char spec[256];
-    std::snprintf(spec, sizeof spec, "%s tau %g:%.17g:%.17g:%.17g", e->name.c_str(), m.tau, m.albedo * m.tau,
-                  (1 - m.albedo) * m.tau, m.g);
-    media.push_back(medium_json(spec));
+    media.push_back({{"name", e->name}, {"sigma_s", m.albedo * m.tau}, {"sigma_a", (1 - m.albedo) * m.tau}, {"g", m.g}});
   }
   return media;
 }

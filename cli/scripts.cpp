@@ -5,10 +5,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+
+#include <fmt/format.h>
 
 #include "cli.h"
 #include "stf/core/clock.h"
@@ -134,6 +137,31 @@ void ProgressBar::update(std::int64_t done, std::int64_t total) {
 
 void ProgressBar::finish() {
   if (drawn_) std::fprintf(stderr, "\n");
+  drawn_ = false;
+}
+
+SphereProgress::SphereProgress(std::string command, bool quiet)
+    : command_(std::move(command)), quiet_(quiet), terminal_(::isatty(STDERR_FILENO)) {}
+
+void SphereProgress::start(int index, int count, const std::string& sphere) {
+  if (quiet_) return;
+  const double seconds = seconds_since(start_);
+  const std::string left = index > 0 ? fmt::format("about {:.0f} s left", seconds / index * (count - index)) : "";
+  if (!terminal_) {
+    std::fprintf(stderr, "%s: precomputing [%d/%d] %s%s\n", command_.c_str(), index + 1, count, sphere.c_str(),
+                 left.empty() ? "" : (", " + left).c_str());
+    return;
+  }
+  const int width = 30, filled = width * index / std::max(count, 1);
+  const std::string bar = std::string(std::size_t(filled), '#') + std::string(std::size_t(width - filled), '.');
+  std::fprintf(stderr, "\r\033[K%s: precomputing [%s] %d of %d spheres, %.0f s%s%s", command_.c_str(), bar.c_str(),
+               index, count, seconds, left.empty() ? "" : ", ", left.c_str());
+  std::fflush(stderr);
+  drawn_ = true;
+}
+
+void SphereProgress::finish() {
+  if (drawn_) std::fprintf(stderr, "\r\033[K");
   drawn_ = false;
 }
 

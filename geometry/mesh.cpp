@@ -6,6 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <unordered_map>
+#include <unordered_set>
 
 namespace stf::geometry {
 
@@ -98,17 +99,88 @@ std::string edge_error(const TriangleMesh& mesh) {
                            "consistently oriented, or more than two triangles share the edge",
                            where(mesh.vertices[a]), where(mesh.vertices[b]), it->second + 1, k + 1);
     }
-  for (std::size_t k = 0; k < mesh.triangles.size(); ++k)
+  // Every hole at once, not its first edge: a user mending the mesh needs them all.
+  const std::vector<BoundaryLoop> holes = boundary_loops(mesh);
+  if (holes.empty()) return "";
+  return "the mesh is not closed, it has " + describe_holes(mesh, holes) + "; `stf mesh close IN.obj -o OUT.obj` fills them";
+}
+
+// The open edges leaving each vertex, and the vertices in the order they were first met (so
+// that the loops come out the same on every run).
+struct OpenEdges {
+  std::unordered_map<std::uint32_t, std::vector<std::uint32_t>> leaving;
+  std::vector<std::uint32_t> starts;
+};
+
+OpenEdges open_edges(const TriangleMesh& mesh) {
+  std::unordered_set<std::uint64_t> directed;
+  directed.reserve(mesh.triangles.size() * 3);
+  for (const auto& t : mesh.triangles)
+    for (int e = 0; e < 3; ++e) directed.insert(edge_key(t[std::size_t(e)], t[std::size_t((e + 1) % 3)]));
+  OpenEdges open;
+  for (const auto& t : mesh.triangles)
     for (int e = 0; e < 3; ++e) {
-      const std::uint32_t a = mesh.triangles[k][std::size_t(e)], b = mesh.triangles[k][std::size_t((e + 1) % 3)];
-      if (!owner.count(edge_key(b, a)))
-        return fmt::format("the edge from {} to {} of triangle {} has no triangle on its other side: the mesh is not closed",
-                           where(mesh.vertices[a]), where(mesh.vertices[b]), k + 1);
+      const std::uint32_t a = t[std::size_t(e)], b = t[std::size_t((e + 1) % 3)];
+      if (directed.count(edge_key(b, a))) continue;
+      auto& out = open.leaving[a];
+      if (out.empty()) open.starts.push_back(a);
+      out.push_back(b);
     }
-  return "";
+  for (auto& [vertex, out] : open.leaving) std::reverse(out.begin(), out.end());  // taken from the back
+  return open;
+}
+
+// Follows open edges from `start` until every one leaving it is used. Each vertex has as many
+// open edges in as out, so the chain can stop only at `start`; where it comes back to a vertex
+// it already passed, the part since then is a loop, cut off at once.
+void chain_from(std::uint32_t start, OpenEdges& open, std::vector<BoundaryLoop>& loops) {
+  std::vector<std::uint32_t> path{start};
+  std::unordered_map<std::uint32_t, std::size_t> at{{start, 0}};
+  while (!path.empty()) {
+    std::vector<std::uint32_t>& out = open.leaving[path.back()];
+    if (out.empty()) break;
+    const std::uint32_t v = out.back();
+    out.pop_back();
+    const auto seen = at.find(v);
+    if (seen == at.end()) {
+      at.emplace(v, path.size());
+      path.push_back(v);
+      continue;
+    }
+    const std::size_t from = seen->second;
+    loops.emplace_back(path.begin() + std::ptrdiff_t(from), path.end());
+    for (std::size_t k = from + 1; k < path.size(); ++k) at.erase(path[k]);
+    path.resize(from + 1);
+  }
 }
 
 }  // namespace
+
+std::vector<BoundaryLoop> boundary_loops(const TriangleMesh& mesh) {
+  OpenEdges open = open_edges(mesh);
+  std::vector<BoundaryLoop> loops;
+  for (std::uint32_t start : open.starts)
+    while (!open.leaving[start].empty()) chain_from(start, open, loops);
+  return loops;
+}
+
+std::string describe_holes(const TriangleMesh& mesh, const std::vector<BoundaryLoop>& loops, std::size_t shown) {
+  std::string text = fmt::format("{} hole{} (rims of edges with a triangle on one side only)", loops.size(),
+                                 loops.size() == 1 ? "" : "s");
+  for (std::size_t k = 0; k < loops.size() && k < shown; ++k) {
+    const BoundaryLoop& loop = loops[k];
+    double rim = 0;
+    Vec3 centre{0, 0, 0};
+    for (std::size_t i = 0; i < loop.size(); ++i) {
+      rim += length(mesh.vertices[loop[(i + 1) % loop.size()]] - mesh.vertices[loop[i]]);
+      centre += mesh.vertices[loop[i]];
+    }
+    text += fmt::format("{} {} edges, {:.3g} long, about {}", k == 0 ? ":" : ";", loop.size(), rim,
+                        where(centre / double(loop.size())));
+  }
+  if (loops.size() > shown) text += fmt::format("; and {} more", loops.size() - shown);
+  return text;
+}
 
 double Bounds::largest_side() const {
   const Vec3 e = extent();

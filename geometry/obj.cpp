@@ -148,7 +148,7 @@ void statement(std::string_view line, TriangleMesh& mesh) {
 
 }  // namespace
 
-TriangleMesh read_obj(const std::string& path) {
+TriangleMesh read_obj_as_written(const std::string& path) {
   const std::string bytes = file_bytes(path);
   TriangleMesh mesh;
   std::size_t number = 1;
@@ -166,7 +166,9 @@ TriangleMesh read_obj(const std::string& path) {
   }
   if (mesh.triangles.empty()) throw std::runtime_error(path + ": holds no triangle");
   if (mesh.vertices.size() > UINT32_MAX) throw std::runtime_error(path + ": more than 2^32 vertices");
-  return welded(mesh);
+  return mesh;
 }
+
+TriangleMesh read_obj(const std::string& path) { return welded(read_obj_as_written(path)); }
 
 }  // namespace stf::geometry

@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -15,6 +16,11 @@
 #include "stf/fit/model_io.h"
 
 namespace stf::scene {
+
+bool computed_by(const Plan& before, const PlanEntry& e) {
+  return std::any_of(before.entries.begin(), before.entries.end(),
+                     [&](const PlanEntry& b) { return b.key == e.key && b.action == "compute"; });
+}
 
 namespace {
 

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The code's size limits (README, "Code"), checked: no source file over --max-file lines,
+"""The code's size limits (docs/design.md, "Code"), checked: no source file over --max-file lines,
 no function over --max-function lines (signature to closing brace) or with more than
 --max-params parameters. Prints one line per breach and exits 1 if there is one; with --list,
 every function with its lines and parameters.

@@ -5,13 +5,16 @@ short report.md in one folder.
 
 Usage: report.py --stf BIN --media MEDIA.json --out DIR [--full]
 MEDIA.json: [{"name": ..., "sigma_s": ..., "sigma_a": ..., "g": ...}, ...] for unit-radius
-tables (sigma_s + sigma_a = tau). The default budget takes a minute or two; --full uses the
+tables (sigma_s + sigma_a = tau); a name may be empty (a pack entry without one). Each medium is
+headed by its name, if any, and its tau, albedo and g (heading()). The default budget takes a minute or two; --full uses the
 sizes of bench/error_vs_runtime.py (1e4..1e7 paths, 1e8 reference, 90 alpha bins).
 """
 import argparse
 import json
+import math
 import os
 import sys
+import textwrap
 
 import matplotlib
 
@@ -24,6 +27,29 @@ from stf_runs import Stf, power_law  # noqa: E402
 MODELS = [("vmf:1", ["--model", "vmf:1"]), ("vmf:4", ["--model", "vmf:4"]), ("hvmf:4", ["--model", "hvmf:4"]),
           ("sh:8", ["--model", "sh:8"]),
           ("sh:16 cheb8", ["--model", "sh:16", "--alpha-degree", "8"])]
+
+
+def heading(medium):
+    """A medium's heading: "NAME: tau T, albedo A, g G", or without a name "tau T, albedo A, g G"."""
+    tau = medium["sigma_s"] + medium["sigma_a"]
+    params = f"tau {tau:.4g}, albedo {medium['sigma_s'] / tau:.4g}, g {medium['g']:.4g}"
+    name = str(medium.get("name") or "").strip()
+    return f"{name}: {params}" if name else params
+
+
+def positive(xs, ys):
+    """The points a log-log plot can show (both coordinates finite and > 0): a zero would be
+    clipped to the axes' edge and draw its segment out of them."""
+    kept = [(x, y) for x, y in zip(xs, ys) if math.isfinite(x) and math.isfinite(y) and x > 0 and y > 0]
+    return [x for x, _ in kept], [y for _, y in kept]
+
+
+def log_limits(values, pad=1.25):
+    """Log-axis limits that hold every value, a factor `pad` beyond the extremes."""
+    values = [v for v in values if math.isfinite(v) and v > 0]
+    if not values:
+        return None
+    return min(values) / pad, max(values) * pad
 
 
 def error_study(stf, media, out, budget):
@@ -44,7 +70,7 @@ def error_study(stf, media, out, budget):
                 m = stf.evaluate(model, ref, os.path.join(out, "eval.json"))
                 entry["models"].append({"model": label, "paths": paths, "precompute_seconds": seconds,
                                         "fit_seconds": fit_seconds, "tv": m["tv_distance"], "bytes": nbytes})
-            print(f"report: {medium['name']}: {paths:.0e} paths done", file=sys.stderr)
+            print(f"report: {heading(medium)}: {paths:.0e} paths done", file=sys.stderr)
         results.append(entry)
     for f in os.listdir(out):  # the tables and models were means, not results
         if f.endswith(".h5") or f == "eval.json":
@@ -53,25 +79,35 @@ def error_study(stf, media, out, budget):
 
 
 def plot_errors(results, out):
-    fig, axes = plt.subplots(1, len(results), figsize=(6.5 * len(results), 4.5), squeeze=False)
-    fig2, axes2 = plt.subplots(1, len(results), figsize=(6.5 * len(results), 4.5), squeeze=False)
-    for ax, bx, entry in zip(axes[0], axes2[0], results):
-        ax.loglog([r["seconds"] for r in entry["raw"]], [r["tv"] for r in entry["raw"]], "k-o", label="raw table")
-        bx.loglog([r["bytes"] for r in entry["raw"]], [r["tv"] for r in entry["raw"]], "ko", label="raw table")
-        for label, _ in MODELS:
-            pts = [m for m in entry["models"] if m["model"] == label]
-            ax.loglog([m["precompute_seconds"] + m["fit_seconds"] for m in pts], [m["tv"] for m in pts], "-s", label=label)
-            bx.loglog([m["bytes"] for m in pts], [m["tv"] for m in pts], "s", label=label)
-        for a, xl in ((ax, "precompute (+ fit) seconds"), (bx, "bytes")):
-            a.set_xlabel(xl)
-            a.set_ylabel("TV distance to reference")
-            a.set_title(entry["medium"]["name"], fontsize=9)
-            a.grid(True, which="both", alpha=0.3)
-            a.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "error_vs_runtime.png"), dpi=100)
-    fig2.tight_layout()
-    fig2.savefig(os.path.join(out, "bytes_vs_error.png"), dpi=100)
+    """error_vs_runtime.png and bytes_vs_error.png, one panel per medium; each axis' limits are set
+    from every curve's points (so no curve leaves its axes), the legend beside the axes."""
+    for name, xlabel, x_of in (("error_vs_runtime.png", "precompute (+ fit) seconds",
+                                (lambda r: r["seconds"], lambda m: m["precompute_seconds"] + m["fit_seconds"])),
+                               ("bytes_vs_error.png", "bytes", (lambda r: r["bytes"], lambda m: m["bytes"]))):
+        fig, axes = plt.subplots(1, len(results), figsize=(7.5 * len(results), 4.5), squeeze=False)
+        line = "-" if name == "error_vs_runtime.png" else ""
+        for ax, entry in zip(axes[0], results):
+            curves = [("raw table", "k" + line + "o", [x_of[0](r) for r in entry["raw"]], [r["tv"] for r in entry["raw"]])]
+            for label, _ in MODELS:
+                pts = [m for m in entry["models"] if m["model"] == label]
+                curves.append((label, line + "s", [x_of[1](m) for m in pts], [m["tv"] for m in pts]))
+            xs, ys = [], []
+            for label, style, x, y in curves:
+                x, y = positive(x, y)
+                ax.loglog(x, y, style, label=label)
+                xs += x
+                ys += y
+            if log_limits(xs):
+                ax.set_xlim(*log_limits(xs))
+                ax.set_ylim(*log_limits(ys))
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel("TV distance to reference")
+            ax.set_title("\n".join(textwrap.wrap(heading(entry["medium"]), 60)), fontsize=9)
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+        fig.tight_layout()
+        fig.savefig(os.path.join(out, name), dpi=100)
+        plt.close(fig)
 
 
 def runtime_studies(stf, out, budget):
@@ -97,16 +133,21 @@ def runtime_studies(stf, out, budget):
     fig, ax = plt.subplots(1, 3, figsize=(16, 4.2))
     ax[0].plot([r["paths"] for r in studies["paths"]], [r["seconds"] for r in studies["paths"]], "o-")
     ax[0].set_xlabel("paths")
-    ax[0].set_title(f"sigma_s 10, g 0: seconds ~ paths^{b:.2f} (thesis Fig. 4.6)", fontsize=9)
+    ax[0].set_title(f"thesis Fig. 4.6\nsigma_s 10, g 0: seconds ~ paths^{b:.2f}", fontsize=9)
+    seconds = []
     for g in (-0.5, 0.0, 0.5):
         pts = [r for r in studies["sigma_s"] if r["g"] == g]
-        ax[1].loglog([r["sigma_s"] for r in pts], [r["seconds"] for r in pts], "o-", label=f"g {g}")
+        x, y = positive([r["sigma_s"] for r in pts], [r["seconds"] for r in pts])
+        ax[1].loglog(x, y, "o-", label=f"g {g}")
+        seconds += y
+    if log_limits(seconds):
+        ax[1].set_ylim(*log_limits(seconds))
     ax[1].set_xlabel("sigma_s (r = 1)")
-    ax[1].set_title("seconds against sigma_s (thesis Fig. 4.7)", fontsize=9)
+    ax[1].set_title("thesis Fig. 4.7\nseconds against sigma_s", fontsize=9)
     ax[1].legend(fontsize=8)
     ax[2].plot([r["g"] for r in studies["g"]], [r["seconds"] for r in studies["g"]], "o-")
     ax[2].set_xlabel("g")
-    ax[2].set_title("sigma_s 8: seconds against g (thesis Fig. 4.8)", fontsize=9)
+    ax[2].set_title("thesis Fig. 4.8\nsigma_s 8: seconds against g", fontsize=9)
     for a_ in ax:
         a_.set_ylabel("seconds (one thread)")
         a_.grid(True, alpha=0.3)
@@ -121,7 +162,7 @@ def summary(results, studies, budget):
     for entry in results:
         raw = entry["raw"]
         coeff, slope = power_law([(r["paths"], r["tv"]) for r in raw])
-        lines.append(f"**{entry['medium']['name']}**: raw TV {raw[0]['tv']:.3f} at {raw[0]['paths']:.0e} paths to "
+        lines.append(f"**{heading(entry['medium'])}**: raw TV {raw[0]['tv']:.3f} at {raw[0]['paths']:.0e} paths to "
                      f"{raw[-1]['tv']:.3f} at {raw[-1]['paths']:.0e} (TV ~ paths^{slope:.2f}).")
         best = None
         for m in entry["models"]:

@@ -98,6 +98,26 @@ TEST_F(SceneRenderCli, BuildOfARenderSceneIsThePackTheRenderUses) {
   EXPECT_NE(refused.err.find("[settings]"), std::string::npos) << refused.err;
 }
 
+// The README's "Render your own mesh" scene, as printed there, with a shipped mesh as my.obj:
+// it renders, and `stf build` plans its pack.
+TEST_F(SceneRenderCli, TheReadmesOwnMeshSceneRendersAndBuilds) {
+  std::ifstream readme(std::string(STF_SOURCE_DIR) + "/README.md");
+  const std::string text((std::istreambuf_iterator<char>(readme)), std::istreambuf_iterator<char>());
+  const std::size_t section = text.find("## Render your own mesh");
+  ASSERT_NE(section, std::string::npos);
+  const std::size_t open = text.find("```toml\n", section), close = text.find("```", open + 8);
+  ASSERT_LT(close, text.find("\n## ", section + 1));
+  std::ofstream(out("my_scene.toml")) << text.substr(open + 8, close - open - 8);
+  std::filesystem::copy_file(std::string(STF_SOURCE_DIR) + "/data/scenes/meshes/icosphere.obj", out("my.obj"));
+  Result r = stf("render " + out("my_scene.toml") + " --method brute --spp 2 --width 16 --height 16 --quiet -o " + out("m.h5"));
+  ASSERT_EQ(r.status, 0) << r.err;
+  const Rendered m = read_rgb(out("m.h5"), 16, 16);
+  for (double v : m.mean) EXPECT_TRUE(std::isfinite(v) && v >= 0);
+  Result plan = stf("build " + out("my_scene.toml") + " --plan-only --cache " + out("cache"));
+  EXPECT_EQ(plan.status, 0) << plan.err;
+  EXPECT_NE(plan.err.find("milk (R)"), std::string::npos) << plan.err;
+}
+
 TEST_F(SceneRenderCli, WritesRgbLayoutAndImages) {
   Result r = stf("render " + scene() + " --spp 3 --width 10 --height 6 --method brute --quiet -o " + out("i.h5") +
                  " --exr " + out("i.exr") + " --png " + out("i.png"));

@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -16,6 +17,7 @@
 #include "stf/geometry/boundary.h"
 #include "stf/geometry/distance_grid.h"
 #include "stf/geometry/mesh.h"
+#include "stf/geometry/mesh_repair.h"
 #include "stf/geometry/shipped_meshes.h"
 
 namespace {
@@ -299,6 +301,217 @@ TEST(Boundary, RaysFromInsideLeaveThroughTheirMeshFacingOut) {
       const Vec3 out = boundary.spawn(p + h.t * w, h.normal, w);
       EXPECT_LT(winding_number(m, out), 0.5) << name;
     }
+  }
+}
+
+// The unit cube [0, 1]^3, outward, as two triangles per face (vertex x + 2y + 4z); face k is
+// triangles 2k and 2k + 1 (-z, +z, -y, +y, -x, +x).
+TriangleMesh unit_cube() {
+  TriangleMesh m;
+  for (int i = 0; i < 8; ++i) m.vertices.push_back({double(i & 1), double((i >> 1) & 1), double((i >> 2) & 1)});
+  const std::uint32_t quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (const auto& q : quads) {
+    m.triangles.push_back({q[0], q[1], q[2]});
+    m.triangles.push_back({q[0], q[2], q[3]});
+  }
+  return m;
+}
+
+TriangleMesh without_faces(TriangleMesh m, std::vector<int> faces) {
+  std::sort(faces.rbegin(), faces.rend());
+  for (int f : faces) m.triangles.erase(m.triangles.begin() + 2 * f, m.triangles.begin() + 2 * f + 2);
+  return m;
+}
+
+// The side walls of a prism of height h over the counter-clockwise polygon (x, y): open at both
+// ends, outward.
+TriangleMesh open_prism(const std::vector<std::pair<double, double>>& polygon, double h) {
+  TriangleMesh m;
+  const auto n = std::uint32_t(polygon.size());
+  for (const auto& [x, y] : polygon) m.vertices.push_back({x, y, 0});
+  for (const auto& [x, y] : polygon) m.vertices.push_back({x, y, h});
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const std::uint32_t j = (i + 1) % n;
+    m.triangles.push_back({i, j, n + j});
+    m.triangles.push_back({i, n + j, n + i});
+  }
+  return m;
+}
+
+double polygon_area(const std::vector<std::pair<double, double>>& p) {
+  double twice = 0;
+  for (std::size_t i = 0; i < p.size(); ++i)
+    twice += p[i].first * p[(i + 1) % p.size()].second - p[(i + 1) % p.size()].first * p[i].second;
+  return twice / 2;
+}
+
+TEST(MeshClose, CubeWithAFaceRemovedIsClosedAsItWas) {
+  const TriangleMesh open = without_faces(unit_cube(), {1});
+  const std::string why = mesh_error(open);
+  EXPECT_NE(why.find("not closed"), std::string::npos) << why;
+  EXPECT_NE(why.find("1 hole (rims of edges with a triangle on one side only): 4 edges, 4 long, about (0.5, 0.5, 1)"), std::string::npos) << why;
+  EXPECT_NE(why.find("stf mesh close"), std::string::npos) << why;
+  const ClosedMesh c = close_holes(open);
+  EXPECT_EQ(mesh_error(c.mesh), "");
+  EXPECT_EQ(c.holes, 1u);
+  EXPECT_EQ(c.triangles_added, 2u);
+  EXPECT_EQ(c.fans, 0u);
+  EXPECT_EQ(c.mesh.vertices.size(), 8u);
+  EXPECT_NEAR(enclosed_volume(c.mesh), 1, 1e-12);
+}
+
+TEST(MeshClose, TwoHolesAreNamedAndBothFilled) {
+  const TriangleMesh open = without_faces(unit_cube(), {0, 1});
+  EXPECT_EQ(boundary_loops(open).size(), 2u);
+  const std::string why = mesh_error(open);
+  EXPECT_NE(why.find("2 holes (rims"), std::string::npos) << why;
+  EXPECT_NE(why.find("; 4 edges, 4 long, about (0.5, 0.5, 1)"), std::string::npos) << why;
+  EXPECT_EQ(why.find('\n'), std::string::npos);
+  const ClosedMesh c = close_holes(open);
+  EXPECT_EQ(mesh_error(c.mesh), "");
+  EXPECT_EQ(c.holes, 2u);
+  EXPECT_EQ(c.triangles_added, 4u);
+  EXPECT_NEAR(enclosed_volume(c.mesh), 1, 1e-12);
+}
+
+// Five holes: the line names three and counts the rest.
+TEST(MeshClose, TheMessageNamesTheFirstThreeHoles) {
+  TriangleMesh ico = icosphere(1, 2);
+  std::vector<bool> used(ico.vertices.size());
+  std::vector<std::size_t> removed;  // five triangles that share no vertex: five holes
+  for (std::size_t k = 0; k < ico.triangles.size() && removed.size() < 5; ++k) {
+    const auto& t = ico.triangles[k];
+    if (used[t[0]] || used[t[1]] || used[t[2]]) continue;
+    for (std::uint32_t i : t) used[i] = true;
+    removed.push_back(k);
+  }
+  for (auto k = removed.rbegin(); k != removed.rend(); ++k) ico.triangles.erase(ico.triangles.begin() + std::ptrdiff_t(*k));
+  const std::string why = mesh_error(ico);
+  EXPECT_NE(why.find("5 holes (rims of edges with a triangle on one side only): 3 edges"), std::string::npos) << why;
+  EXPECT_NE(why.find("; and 2 more"), std::string::npos) << why;
+  const ClosedMesh c = close_holes(ico);
+  EXPECT_EQ(mesh_error(c.mesh), "");
+  EXPECT_EQ(c.holes, 5u);
+  // Five faces of the cube gone leave one rim, round the face that is left.
+  const TriangleMesh open = without_faces(unit_cube(), {0, 1, 2, 3, 4});
+  ASSERT_EQ(boundary_loops(open).size(), 1u);
+  EXPECT_EQ(boundary_loops(open)[0].size(), 4u);
+}
+
+// A loop of 200 edges (a cylinder's rim) and a star-shaped rim whose ears are not all corners:
+// every cap is cut from the rim's own vertices and encloses the prism's exact volume.
+TEST(MeshClose, LongAndConcaveRimsAreFilledFromTheirOwnVertices) {
+  std::vector<std::pair<double, double>> circle, star;
+  for (int i = 0; i < 200; ++i) circle.emplace_back(std::cos(2 * kPi * i / 200), std::sin(2 * kPi * i / 200));
+  for (int i = 0; i < 14; ++i) {
+    const double r = i % 2 ? 0.4 : 1.0;
+    star.emplace_back(r * std::cos(2 * kPi * i / 14), r * std::sin(2 * kPi * i / 14));
+  }
+  for (const auto& polygon : {circle, star}) {
+    const TriangleMesh open = open_prism(polygon, 0.5);
+    ASSERT_EQ(boundary_loops(open).size(), 2u);
+    EXPECT_EQ(boundary_loops(open)[0].size(), polygon.size());
+    const ClosedMesh c = close_holes(open);
+    EXPECT_EQ(mesh_error(c.mesh), "") << polygon.size();
+    EXPECT_EQ(c.triangles_added, 2 * (polygon.size() - 2));
+    EXPECT_EQ(c.fans, 0u);
+    EXPECT_NEAR(enclosed_volume(c.mesh), 0.5 * polygon_area(polygon), 1e-12) << polygon.size();
+  }
+}
+
+// The new triangles turn as their neighbours: outward meshes stay outward, inward ones inward.
+TEST(MeshClose, NewTrianglesTurnAsTheirNeighbours) {
+  TriangleMesh inward = without_faces(unit_cube(), {3});
+  for (auto& t : inward.triangles) std::swap(t[1], t[2]);
+  const ClosedMesh c = close_holes(inward);
+  EXPECT_EQ(mesh_error(c.mesh), "");
+  EXPECT_NEAR(enclosed_volume(c.mesh), -1, 1e-12);
+  TriangleMesh ico = icosphere(1, 1);
+  const double whole = enclosed_volume(ico);
+  ico.triangles.erase(ico.triangles.begin() + 7, ico.triangles.begin() + 12);
+  const ClosedMesh d = close_holes(ico);
+  EXPECT_EQ(mesh_error(d.mesh), "");
+  EXPECT_GT(enclosed_volume(d.mesh), 0.95 * whole);
+  EXPECT_LE(enclosed_volume(d.mesh), whole + 1e-12);
+}
+
+TEST(MeshClose, ClosedMeshIsUnchanged) {
+  const TriangleMesh ico = icosphere(1, 2);
+  EXPECT_TRUE(boundary_loops(ico).empty());
+  const ClosedMesh c = close_holes(ico);
+  EXPECT_EQ(c.holes, 0u);
+  EXPECT_EQ(c.triangles_added, 0u);
+  EXPECT_EQ(c.mesh.triangles, ico.triangles);
+  ASSERT_EQ(c.mesh.vertices.size(), ico.vertices.size());
+  for (std::size_t i = 0; i < ico.vertices.size(); ++i) EXPECT_EQ(length(c.mesh.vertices[i] - ico.vertices[i]), 0);
+}
+
+// Two triangles that share only a vertex, removed: the rim passes that vertex twice and is cut
+// there into two loops of three edges, each filled by one triangle.
+TEST(MeshClose, HolesMeetingAtAVertexAreCutThere) {
+  TriangleMesh ico = icosphere(1, 1);
+  const std::uint32_t v = ico.triangles[0][0];
+  std::vector<std::size_t> at_v;
+  for (std::size_t k = 0; k < ico.triangles.size(); ++k)
+    if (std::find(ico.triangles[k].begin(), ico.triangles[k].end(), v) != ico.triangles[k].end()) at_v.push_back(k);
+  ASSERT_EQ(at_v.size(), 5u);
+  // Around a vertex of valence 5, two triangles share an edge only when next to each other;
+  // find two that share nothing but v.
+  std::size_t a = at_v[0], b = a;
+  for (std::size_t k : at_v) {
+    int shared = 0;
+    for (std::uint32_t i : ico.triangles[k])
+      shared += std::count(ico.triangles[a].begin(), ico.triangles[a].end(), i);
+    if (shared == 1) b = k;
+  }
+  ASSERT_NE(a, b);
+  ico.triangles.erase(ico.triangles.begin() + std::ptrdiff_t(std::max(a, b)));
+  ico.triangles.erase(ico.triangles.begin() + std::ptrdiff_t(std::min(a, b)));
+  const std::vector<BoundaryLoop> loops = boundary_loops(ico);
+  ASSERT_EQ(loops.size(), 2u);
+  EXPECT_EQ(loops[0].size() + loops[1].size(), 6u);
+  const ClosedMesh c = close_holes(ico);
+  EXPECT_EQ(mesh_error(c.mesh), "");
+  EXPECT_EQ(c.triangles_added, 2u);
+}
+
+// Where both diagonals of a rim are edges already (two tetrahedra on the open cube's top
+// corners), no ear can be cut without repeating an edge: a fan about the centroid closes it.
+TEST(MeshClose, AFanClosesWhatNoEarCan) {
+  TriangleMesh m = without_faces(unit_cube(), {1});
+  for (const auto& [a, b] : {std::pair<std::uint32_t, std::uint32_t>{4, 7}, {5, 6}}) {
+    const auto p = std::uint32_t(m.vertices.size());
+    const Vec3 mid = 0.5 * (m.vertices[a] + m.vertices[b]);
+    m.vertices.push_back(mid + Vec3{0.1, -0.1, 1});
+    m.vertices.push_back(mid + Vec3{-0.1, 0.1, 1.2});
+    const std::uint32_t q = p + 1;
+    for (const auto& t : {std::array<std::uint32_t, 3>{a, b, p}, {a, p, q}, {a, q, b}, {b, q, p}}) m.triangles.push_back(t);
+  }
+  ASSERT_EQ(boundary_loops(m).size(), 1u);
+  const ClosedMesh c = close_holes(m);
+  EXPECT_EQ(c.fans, 1u);
+  EXPECT_EQ(c.triangles_added, 4u);
+  EXPECT_EQ(c.mesh.vertices.size(), m.vertices.size() + 1);
+  EXPECT_EQ(mesh_error(c.mesh), "");
+}
+
+TEST(MeshClose, WhatCannotBeClosedIsRefusedInOneLine) {
+  TriangleMesh fin = without_faces(unit_cube(), {1});
+  fin.vertices.push_back({0.5, 0.5, 2});
+  fin.triangles.push_back({0, 1, 8});  // a third triangle on the cube's edge from vertex 0 to 1
+  try {
+    close_holes(fin);
+    ADD_FAILURE() << "a non-manifold edge was closed";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("is in 3 triangles"), std::string::npos) << e.what();
+  }
+  TriangleMesh flipped = without_faces(unit_cube(), {1});
+  std::swap(flipped.triangles[4][1], flipped.triangles[4][2]);
+  try {
+    close_holes(flipped);
+    ADD_FAILURE() << "a mesh whose triangles disagree was closed";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("disagree on which side is outside"), std::string::npos) << e.what();
   }
 }
 

@@ -34,6 +34,8 @@ Bounds bounds_of(const TriangleMesh& mesh);
 // std::runtime_error "FILE:LINE: what" (or "FILE: what") when the file is not a regular file,
 // cannot be read, has a statement it cannot read exactly or holds no triangle.
 TriangleMesh read_obj(const std::string& path);
+// The same with every vertex as the file has it, none joined (`stf mesh close` counts the joins).
+TriangleMesh read_obj_as_written(const std::string& path);
 
 // The mesh with vertices at the same position joined (an OBJ may repeat a position per face or
 // per texture seam) and the triangles renumbered.
@@ -47,6 +49,19 @@ std::string obj_text(const TriangleMesh& mesh);
 // consistently oriented (every edge in exactly two triangles, once each way; either way round,
 // see oriented_outward) and enclosing a volume. Self-intersections are not looked for.
 std::string mesh_error(const TriangleMesh& mesh);
+
+// The vertices of one hole's rim, in the order its open edges run in their own triangles: the
+// edge from vertices[i] to vertices[i + 1] (and from the last to the first) has a triangle on
+// one side only. No vertex appears twice in a loop.
+using BoundaryLoop = std::vector<std::uint32_t>;
+
+// The holes of `mesh`, whose directed edges must each be in one triangle at most (mesh_error's
+// first edge test): the open edges chained into loops. Where a vertex lies on the rim of two
+// holes (or twice on one) the chain is cut there, so each loop passes every vertex once.
+std::vector<BoundaryLoop> boundary_loops(const TriangleMesh& mesh);
+
+// One line on `loops`: how many, and for the first `shown` their edges, rim length and centre.
+std::string describe_holes(const TriangleMesh& mesh, const std::vector<BoundaryLoop>& loops, std::size_t shown = 3);
 
 // The mesh with its triangles turned the other way when they face inward (negative volume);
 // a closed consistently oriented mesh is one or the other.

@@ -56,6 +56,9 @@ std::string plan_json(const Plan& plan);
 // Entries certified under the scene's tolerance but not within it (their bound is the lowest
 // the limits allowed).
 std::vector<const PlanEntry*> unmet_entries(const Plan& plan);
+// Whether `before` (the plan a build started from) had `e` to compute: what a build warns of
+// once, when it computes it, and not again when it finds it cached.
+bool computed_by(const Plan& before, const PlanEntry& e);
 std::string plan_table(const Plan& plan);
 
 // Cache files of an entry.

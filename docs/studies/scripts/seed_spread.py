@@ -17,7 +17,7 @@ reference's density (per steradian) and cut where they hold 50% and 80% of the b
 the peak, the shoulder and the tail.
 
 Writes OUT/seed_spread.json and prints a markdown table. Usage:
-  bench/seed_spread.py [--tau 1] [--g 0.9] [--albedo 0.95] [--seeds 2,4,5,6,7]
+  docs/studies/scripts/seed_spread.py [--tau 1] [--g 0.9] [--albedo 0.95] [--seeds 2,4,5,6,7]
                        [--model hvmf:auto] [--variant=--ablate=alpha-smoothing] [--out DIR]
 Needs build/stf (or $STF_BINARY) and Debian's python3-h5py and python3-numpy.
 """
@@ -31,7 +31,7 @@ import sys
 import h5py
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "tools"))
 from stf_runs import Stf  # noqa: E402
 

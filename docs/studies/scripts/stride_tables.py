@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """How far a tabulated stride would draw from the model: tables against each pack entry.
 
-    PYTHONPATH=build/python /usr/bin/python3 bench/stride_tables.py PACK [--out FILE.json]
+    PYTHONPATH=build/python /usr/bin/python3 docs/studies/scripts/stride_tables.py PACK [--out FILE.json]
 
 A stride form without lobes (no logarithm, no rejection: build/bench/stride_cost's
 `table_draw_floor` times its draw) would hold, per sub-bin of exit angles (equal area, S of

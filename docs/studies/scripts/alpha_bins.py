@@ -29,7 +29,7 @@ stand still inside each bin), that one without blending (`model_45_tilted`) and 
 either (`model_45_flat`: the model as stf built it before all three).
 
 Writes OUT/alpha_bins.json and prints a table. Usage:
-  bench/alpha_bins.py [--out DIR] [--paths 1e7] [--reference-paths 3e7] [--grid healpix:16]
+  docs/studies/scripts/alpha_bins.py [--out DIR] [--paths 1e7] [--reference-paths 3e7] [--grid healpix:16]
 Needs build/stf and Debian's python3-h5py and python3-numpy.
 """
 import argparse
@@ -40,7 +40,7 @@ import sys
 import h5py
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "tools"))
 from stf_runs import Stf  # noqa: E402
 

@@ -7,7 +7,7 @@ NSIDE, clipped at zero and renormalised, gives the peer's cell probabilities; `s
 sh:L` (window and smoothing chosen on held-out data) is evaluated by `stf eval`. Both are
 compared with the reference by the alpha-weighted TV distance. Writes JSON to --out.
 
-Usage: bench/sh_vs_healpy.py [--out FILE.json] [--paths N] [--reference-paths N]
+Usage: docs/studies/scripts/sh_vs_healpy.py [--out FILE.json] [--paths N] [--reference-paths N]
 Needs Debian's python3-healpy.
 """
 import argparse
@@ -20,7 +20,7 @@ import h5py
 import healpy as hp
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "tools"))
 from stf_runs import Stf  # noqa: E402
 

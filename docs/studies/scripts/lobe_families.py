@@ -2,7 +2,7 @@
 """Exit-direction lobe families that draw in one go, against the hemispherical vMF lobe (hvmf)
 that a stride must draw by rejection: how well each fits a table's alpha bins.
 
-    /usr/bin/python3 bench/lobe_families.py TABLE.h5 [MORE.h5] [--bins 2,7,...] [--lobes 1,2,3,4]
+    /usr/bin/python3 docs/studies/scripts/lobe_families.py TABLE.h5 [MORE.h5] [--bins 2,7,...] [--lobes 1,2,3,4]
                                             [--out FILE.json]
 
 Per alpha bin [a0, a1] of a table (stf precompute's, exit directions w per HEALPix cell, in the

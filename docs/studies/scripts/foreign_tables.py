@@ -14,7 +14,7 @@ Also `stf import` of a text file of 1e6 rows `alpha theta phi count` (bins' midd
 centres): its seconds, and whether the counts come back exactly.
 
 Writes OUT/foreign_tables.json and prints a markdown table.
-Usage: bench/foreign_tables.py [--out DIR] [--reference-paths N] [--media K] [--threads T]
+Usage: docs/studies/scripts/foreign_tables.py [--out DIR] [--reference-paths N] [--media K] [--threads T]
 """
 import argparse
 import json
@@ -25,7 +25,7 @@ import time
 import h5py
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "tools"))
 from stf_runs import Stf  # noqa: E402
 
