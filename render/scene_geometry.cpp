@@ -3,7 +3,9 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
+#include <cstdio>
 
 #include "stf/core/reading_input.h"
 #include "stf/scene/scene_error.h"
@@ -13,6 +15,12 @@ namespace stf::render {
 namespace {
 
 using geometry::Bounds;
+
+// The largest coordinate of a ray Embree traces (its FLT_LARGE, in float).
+[[maybe_unused]] constexpr double kEmbreeLargest = 1.844e18;
+// How far along a ray the ground plane is met at most (where the ray's origin is within the
+// scene's +-kLargestCoordinate, its hit stays well within kEmbreeLargest).
+constexpr double kFarthestGround = 1e15;
 
 [[noreturn]] void refuse(const scene::RenderScene& s, int line, const std::string& what) {
   throw scene::SceneError(s.path + ":" + std::to_string(line) + ": " + what);
@@ -66,6 +74,26 @@ double sphere_hit(const Vec3& o, const Vec3& d, const Vec3& c, double r) {
   if (disc < 0) return HUGE_VAL;
   const double root = std::sqrt(disc), near = -b - root, far = -b + root;
   return near > 0 ? near : (far > 0 ? far : HUGE_VAL);
+}
+
+#ifndef NDEBUG
+// Whether Embree can trace the ray: its origin and direction finite and, as floats, within the
+// +-1.8e18 its ray.valid() asserts (FLT_LARGE); the direction not 0.
+bool traceable(const Vec3& origin, const Vec3& direction) {
+  for (const double v : {origin.x, origin.y, origin.z, direction.x, direction.y, direction.z})
+    if (!(std::abs(v) <= kEmbreeLargest)) return false;
+  return dot(direction, direction) > 0;
+}
+#endif
+
+// Debug builds stop at a ray Embree could not trace, naming it; NDEBUG compiles the check out.
+void check_ray([[maybe_unused]] const Vec3& origin, [[maybe_unused]] const Vec3& direction) {
+#ifndef NDEBUG
+  if (traceable(origin, direction)) return;
+  std::fprintf(stderr, "stf: a ray from (%g, %g, %g) heading (%g, %g, %g) cannot be traced\n", origin.x, origin.y,
+               origin.z, direction.x, direction.y, direction.z);
+  assert(!"SceneGeometry::trace: a ray's origin and direction must be finite and within +-1.8e18, its direction not 0");
+#endif
 }
 
 }  // namespace
@@ -123,6 +151,7 @@ void SceneGeometry::check_layout(const scene::RenderScene& s) const {
 }
 
 SurfaceHit SceneGeometry::trace(const Vec3& origin, const Vec3& direction, double t_max) const {
+  check_ray(origin, direction);
   SurfaceHit best;
   best.t = t_max;
   const geometry::Hit h = boundary_->intersect(origin, direction, t_max);
@@ -134,7 +163,10 @@ SurfaceHit SceneGeometry::trace(const Vec3& origin, const Vec3& direction, doubl
   }
   if (ground_ && direction.y < 0) {
     const double t = (ground_height_ - origin.y) / direction.y;
-    if (t > 0 && t < best.t) best = {true, t, kGround, {0, 1, 0}};
+    // A ray that skims the plane meets it at the horizon, as far as 1 / |direction.y|: there a
+    // next ray's origin could leave float's range (1e-300 puts it at 1e300). The ground ends
+    // at kFarthestGround, far beyond any scene (coordinates within kLargestCoordinate).
+    if (t > 0 && t < best.t && t <= kFarthestGround) best = {true, t, kGround, {0, 1, 0}};
   }
   return best;
 }

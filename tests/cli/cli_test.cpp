@@ -358,6 +358,8 @@ TEST_F(Cli, ReportWritesPlotsJsonAndSummary) {
   std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("Error against run time"), std::string::npos);
   EXPECT_NE(text.find("thesis Fig. 4.7"), std::string::npos);
+  EXPECT_NE(text.find("**dense: tau 6.1, albedo 0.9836, g 0.5**"), std::string::npos) << text;
+  EXPECT_EQ(text.find("** tau"), std::string::npos) << text;
   Result bad = stf("report --medium dense:6:0.1:1.5 -o " + out("r2"));
   EXPECT_NE(bad.status, 0);
   EXPECT_NE(bad.err.find("--medium"), std::string::npos) << bad.err;

@@ -35,7 +35,10 @@ class SceneGeometry {
   SceneGeometry(const scene::RenderScene& scene, FreeRadius method, int grid_cells = 256, const RunContext& run = {});
   ~SceneGeometry();
 
-  // The nearest surface along origin + t direction (unit), t in (0, t_max).
+  // The nearest surface along origin + t direction (unit), t in (0, t_max); the ground plane
+  // only within 1e15 (farther it is the horizon, where a next ray's origin would leave the
+  // range Embree traces in float). Debug builds assert that origin and direction are finite and
+  // within that range (+-1.8e18) and the direction is not 0; NDEBUG compiles the check out.
   SurfaceHit trace(const Vec3& origin, const Vec3& direction, double t_max = HUGE_VAL) const;
   // A lower bound of the distance from x (inside `object`) to the object's boundary.
   double free_radius(const Vec3& x, int object) const;
