@@ -29,8 +29,8 @@ struct BuildOptions {
 
 // The recipe of `o.scene`: a pack recipe as written, or for a render scene (one with
 // [[objects]]) the pack `stf render --method stf` would build for it (render/pack_recipe.h).
-scene::Scene recipe_of(const BuildOptions& o, const CLI::App& cmd, int threads) {
-  if (!scene::is_render_scene(o.scene)) {
+scene::Scene recipe_of(const BuildOptions& o, const CLI::App& cmd, bool render_scene, int threads) {
+  if (!render_scene) {
     if (cmd.count("--tolerance") || cmd.count("--model"))
       fail("--tolerance and --model apply to render scenes; a pack recipe sets them in [settings]");
     return scene::read_scene(o.scene);
@@ -44,12 +44,22 @@ scene::Scene recipe_of(const BuildOptions& o, const CLI::App& cmd, int threads) 
   return render::scene_pack_recipe(sc, geometry, settings);
 }
 
+// recipe_of `o.scene`, telling whether it is a render scene; a scene's error in one line.
+scene::Scene read_recipe(const BuildOptions& o, const CLI::App& cmd, int threads, bool& render_scene) {
+  try {
+    render_scene = scene::is_render_scene(o.scene);
+    return recipe_of(o, cmd, render_scene, threads);
+  } catch (const scene::SceneError& e) {
+    fail(e.what());
+  }
+}
+
 // The cache a build reads and fills: --cache; for a render scene stf render's own (so that
 // renders find what was built), for a recipe SCENE.toml.cache.
-std::string cache_of(const BuildOptions& o) {
+std::string cache_of(const BuildOptions& o, bool render_scene) {
   if (!o.cache.empty()) return o.cache;
   const std::string shared = render::default_cache_folder();
-  return scene::is_render_scene(o.scene) && !shared.empty() ? shared : o.scene + ".cache";
+  return render_scene && !shared.empty() ? shared : o.scene + ".cache";
 }
 
 // One line per entry this build computed that it could not certify within the tolerance (once,
@@ -76,13 +86,9 @@ void run_build(const BuildOptions& o, const CLI::App& cmd) {
   if (!o.plan_only && o.output.empty()) fail("-o must name the output pack (or use --plan-only)");
   if (o.json && o.output == "-") fail("--json and -o - would both write to stdout; give -o a file");
   const int threads = int(parse_count(o.threads, "--threads", 0, 4096));
-  scene::Scene sc;
-  try {
-    sc = recipe_of(o, cmd, threads);
-  } catch (const scene::SceneError& e) {
-    fail(e.what());
-  }
-  const std::string cache = cache_of(o);
+  bool render_scene = false;
+  const scene::Scene sc = read_recipe(o, cmd, threads, render_scene);
+  const std::string cache = cache_of(o, render_scene);
   if (!o.plan_only) require_writable_folder(cache, "--cache");
   if (!o.output.empty() && inside_folder(o.output, cache))
     fail("-o '" + o.output + "' is inside the cache '" + cache + "', which holds the tables and models the build reads; choose another folder");
