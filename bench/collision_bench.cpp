@@ -1,7 +1,7 @@
-// Float or double for the brute-force tracer: the collision loop of render/tracer.cpp
+// Float or double for the brute-force tracer: the collision loop of render/ladder.cpp (CollisionWalk)
 // (exponential flight, leaving test, albedo, Henyey-Greenstein turn about a branchless frame)
 // in both precisions, from the centre of a sphere until the path leaves or roulette ends it,
-// one thread; and the tracer itself (double) rendering its scene. Both precisions turn with the
+// one thread; and the renderer itself (double, no shadow rays) rendering the one-sphere scene. Both precisions turn with the
 // tracer's double sincos polynomial. Prints collisions per second
 // as JSON, with the float / double ratio measured in the same run.
 //   collision_bench [PATHS]
@@ -15,6 +15,8 @@
 #include "stf/hg.h"
 #include "stf/render/pixel_rng.h"
 #include "stf/render/render.h"
+#include "stf/render/scene_geometry.h"
+#include "stf/render/sphere_scene.h"
 
 namespace {
 
@@ -73,7 +75,12 @@ int main(int argc, char** argv) {
   m.sigma_s = 99.9, m.sigma_a = 0.1, m.g = 0.8, m.radius = 1;
   stf::render::ImageSettings s;
   s.width = s.height = 32, s.spp = 64, s.run.threads = 1;
-  const stf::render::Image image = stf::render::render(m, stf::render::BruteForce(m), s);
+  const stf::scene::RenderScene scene = stf::render::sphere_scene(m, s.width, s.height);
+  const stf::render::SceneGeometry geometry(scene, stf::render::FreeRadius::kQuery);
+  stf::render::PathOptions options;
+  options.next_event = false;  // collisions alone
+  const stf::render::Image image =
+      stf::render::render(scene, stf::render::ScenePaths(scene, geometry, nullptr, options), s, stf::render::Channels::kOne);
   std::printf("{\"double_collisions_per_s\": %.4g, \"float_collisions_per_s\": %.4g, \"float_over_double\": %.3f, "
               "\"tracer_collisions_per_s\": %.4g, \"collisions_double\": %ld, \"collisions_float\": %ld}\n",
               d, f, f / d, double(image.collisions) / image.seconds, nd, nf);

@@ -22,6 +22,14 @@ third run with ideal strides (stf render --ideal-strides: the true transport thr
 sphere) gives the shell collisions and strides of a perfect model, and the bound
 B / (C_ideal + c N_ideal) at the same c.
 
+Media that vary (density grids): --density-tolerances T,T2,... renders the strided run once per
+tolerance (stf render --density-tolerance), a row each; --reference-spp N adds a long brute-force
+render (seed 1000) per scene and density, and per strided run its bias: the strided mean less the
+reference's, per 4 x 4 block in units of the two images' combined noise (bias_max_block_z) and per
+channel (bias_relative, bias_z), and the noise of a 256-spp render of that size in the same units
+(bias_over_noise_256spp: the whole image's bias against the noise of a 256-spp render's mean),
+with null collisions per real one for both methods.
+
 Writes OUT/scene_bench.json and, with --pictures, OUT/NAME_pair.png (brute | strided | z-map);
 with several --densities, OUT/NAME_density.png: the equal-error speed-up and the bound against
 the density, beside the learned-STF renderer's teaser figures (Leonard, Hoehlein, Westermann,
@@ -30,6 +38,7 @@ sample count with approximate steps).
 Usage:
   bench/scene_bench.py SCENE.toml [MORE.toml] [--out DIR] [--size 64] [--spp 60]
                        [--densities 1] [--free-radius grid,query] [--repeats 3] [--ideal] [--pictures]
+                       [--density-tolerances 0.1] [--reference-spp 0]
 Needs build/stf and Debian's python3-matplotlib, python3-h5py and python3-numpy.
 """
 import argparse
@@ -72,6 +81,8 @@ def scaled_scene(path, factor, out):
             lines += [f"{k} = {toml_value(v)}" for k, v in scene[key].items()]
     for m in scene["media"]:
         m = dict(m)
+        if "grid" in m:
+            m["grid"] = os.path.join(folder, m["grid"])
         if "preset" in m:
             m["density"] = m.get("density", 1.0) * factor
         else:
@@ -120,27 +131,40 @@ def pay_off(pack_seconds, speedup, saved):
     return {"frames_to_pay_off": pack_seconds / saved, "pays_off": True}
 
 
-def timed_pair(a, stf, scene, name, free_radius):
+def timed_pair(a, stf, scene, name, free_radius, tolerance):
     """Both methods --repeats times in turns (the same seeds, so the same images); each run's
     seconds the median of its turns, as this machine's load comes and goes."""
-    turns = []
+    turns, strided = [], ("--density-tolerance", tolerance)
     for _ in range(a.repeats):
         turns.append((render(stf, scene, "brute", os.path.join(a.out, f"{name}_{free_radius}_brute.h5"), a, 1, free_radius),
-                      render(stf, scene, "stf", os.path.join(a.out, f"{name}_{free_radius}_stf.h5"), a, 2, free_radius)))
+                      render(stf, scene, "stf", os.path.join(a.out, f"{name}_{free_radius}_stf.h5"), a, 2, free_radius,
+                             strided)))
     (mb, vb, sb), (ms, vs, ss) = turns[-1]
     sb["seconds"] = float(np.median([t[0][2]["seconds"] for t in turns]))
     ss["seconds"] = float(np.median([t[1][2]["seconds"] for t in turns]))
     return mb, vb, sb, ms, vs, ss
 
 
-def compare(a, stf, scene, name, free_radius, pack_seconds):
-    mb, vb, sb, ms, vs, ss = timed_pair(a, stf, scene, name, free_radius)
+def bias(ms, vs, reference, spp):
+    """The strided image against the long brute-force reference (mean, variance of the mean)."""
+    mr, vr = reference
+    z = block_z(mr, vr, ms, vs)
+    rel = [float(ms[..., c].mean() / mr[..., c].mean() - 1) for c in range(3)]
+    zc = [float((ms[..., c].sum() - mr[..., c].sum()) / np.sqrt(vs[..., c].sum() + vr[..., c].sum())) for c in range(3)]
+    # A 256-spp render's noise on the image mean: this run's variance scaled by spp / 256.
+    noise = [float(np.sqrt(vs[..., c].sum() * spp / 256) / vs[..., c].size) for c in range(3)]
+    over = [float(abs(ms[..., c].mean() - mr[..., c].mean()) / noise[c]) for c in range(3)]
+    return {"bias_max_block_z": float(np.abs(z).max()), "bias_relative": rel, "bias_z": zc, "bias_over_noise_256spp": over}
+
+
+def compare(a, stf, scene, name, free_radius, pack_seconds, tolerance=0.1, reference=None):
+    mb, vb, sb, ms, vs, ss = timed_pair(a, stf, scene, name, free_radius, tolerance)
     efficiency = [(sb["seconds"] * vb[..., c].sum()) / (ss["seconds"] * vs[..., c].sum()) for c in range(3)]
     speedup = np.mean(efficiency)
     z = block_z(mb, vb, ms, vs)
     # What strides save on one frame at brute force's error: nothing where they do not pay.
     saved = sb["seconds"] * (1 - 1 / speedup) if speedup > 1 else 0
-    row = {"scene": name, "free_radius": free_radius, "equal_error_speedup": float(speedup),
+    row = {"scene": name, "free_radius": free_radius, "density_tolerance": tolerance, "equal_error_speedup": float(speedup),
            "equal_error_speedup_per_channel": [float(e) for e in efficiency],
            "variance_ratio_per_channel": [float(vs[..., c].sum() / vb[..., c].sum()) for c in range(3)],
            "max_block_z": float(np.abs(z).max()),
@@ -171,7 +195,10 @@ def compare(a, stf, scene, name, free_radius, pack_seconds):
                     "shadow_rays_per_path": per_path(s, "shadow_rays"), "rays_per_path": per_path(s, "rays"),
                     "rays_by_kind_per_path": {k: v / s["paths"] for k, v in s.get("rays_by_kind", {}).items()},
                     "once_scattered_exits_per_stride": s.get("once_scattered_exits", 0) / max(1, s["strides"]),
-                    "grid_bytes": s["grid_bytes"]}
+                    "null_collisions_per_collision": s.get("null_collisions", 0) / max(1, s["collisions"]),
+                    "grid_bytes": s["grid_bytes"], "density_grid_bytes": s.get("density_grid_bytes", 0)}
+    if reference is not None:
+        row.update(bias(ms, vs, reference, a.spp))
     if a.pictures:
         picture(mb, ms, z, os.path.join(a.out, f"{name}_pair.png"), a.exposure)
     return row
@@ -205,7 +232,9 @@ def density_plot(rows, factors, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6, 4.2))
+    biased = "bias_relative" in rows[0]
+    fig, axes = plt.subplots(1, 2 if biased else 1, figsize=(11 if biased else 6, 4.2), squeeze=False)
+    ax = axes[0][0]
     ax.plot(factors, [r["equal_error_speedup"] for r in rows], "o-", label="stf strides (equal error)")
     ax.plot(factors, [r.get("bound_at_measured_cost", np.nan) for r in rows], "s--", label="bound B / (C + c N) at the measured c")
     ax.plot(list(THEIRS), list(THEIRS.values()), "^:", label="learned STF, EG 2021 (equal sample count, approximate steps)")
@@ -216,6 +245,17 @@ def density_plot(rows, factors, path):
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
+
+
+def reference_image(a, stf, scene, name):
+    """The long brute-force render (--reference-spp, seed 1000): (mean, variance of the mean), or None."""
+    if a.reference_spp <= 0:
+        return None
+    out = os.path.join(a.out, f"{name}_reference.h5")
+    stf.run("render", scene, "--method", "brute", "--width", a.size, "--height", a.size, "--spp", a.reference_spp,
+            "--seed", 1000, "--quiet", "-o", out)
+    with h5py.File(out, "r") as f:
+        return f["image/mean"][()], f["image/variance_of_mean"][()]
 
 
 def main():
@@ -230,6 +270,8 @@ def main():
     p.add_argument("--ideal", action="store_true")
     p.add_argument("--pictures", action="store_true")
     p.add_argument("--exposure", type=float, default=-0.5)
+    p.add_argument("--density-tolerances", default="0.1")
+    p.add_argument("--reference-spp", type=int, default=0)
     a = p.parse_args()
     os.makedirs(a.out, exist_ok=True)
     a.cache = os.path.join(a.out, "cache")
@@ -243,16 +285,20 @@ def main():
                     "--json", warm + ".json", "--cache", a.cache)
             with open(warm + ".json") as f:
                 pack_seconds = json.load(f)["precompute_seconds"]
+            reference = reference_image(a, stf, scene, name)
             for free_radius in a.free_radius.split(","):
-                rows.append(compare(a, stf, scene, name, free_radius, pack_seconds))
-                rows[-1]["density"] = factor
-                print(json.dumps(rows[-1]), flush=True)
+                for tolerance in (float(x) for x in a.density_tolerances.split(",")):
+                    rows.append(compare(a, stf, scene, name, free_radius, pack_seconds, tolerance, reference))
+                    rows[-1]["density"] = factor
+                    print(json.dumps(rows[-1]), flush=True)
         factors = [float(x) for x in a.densities.split(",")]
         if len(factors) > 1:
             base = os.path.splitext(os.path.basename(path))[0]
             for free_radius in a.free_radius.split(","):
-                mine = [r for r in rows if r["scene"].startswith(base) and r["free_radius"] == free_radius][-len(factors):]
-                density_plot(mine, factors, os.path.join(a.out, f"{base}_{free_radius}_density.png"))
+                for tolerance in (float(x) for x in a.density_tolerances.split(",")):
+                    mine = [r for r in rows if r["scene"].startswith(base) and r["free_radius"] == free_radius
+                            and r["density_tolerance"] == tolerance][-len(factors):]
+                    density_plot(mine, factors, os.path.join(a.out, f"{base}_{free_radius}_t{tolerance:g}_density.png"))
     with open(os.path.join(a.out, "scene_bench.json"), "w") as f:
         json.dump({"size": a.size, "spp": a.spp, "rows": rows}, f, indent=2)
 

@@ -33,9 +33,9 @@
 #include "stf/pack.h"
 #include "stf/render/pixel_rng.h"
 #include "stf/render/render.h"
-#include "stf/render/render_scene.h"
 #include "stf/render/scene_geometry.h"
-#include "stf/render/tracer.h"
+#include "stf/render/ladder.h"
+#include "sphere_rays.h"
 #include "stf/scene/render_scene.h"
 
 namespace {
@@ -108,12 +108,13 @@ Counts follow(const stf::Medium& m, const Radii* radii, Vec3 x, Vec3 w, PixelRng
 Counts per_path(const stf::Medium& m, const Radii* radii, long paths) {
   Counts sum;
   long hits = 0;
+  const bench::SphereCamera camera(m);
   for (long p = 0; hits < paths; ++p) {
     PixelRng rng(7, std::uint64_t(p));
-    const stf::render::Ray ray = stf::render::camera_ray(64 * rng.uniform(), 64 * rng.uniform(), 64, 64, m.radius);
-    Vec3 entry;
-    if (!stf::render::enter_sphere(ray, m.radius, entry)) continue;
-    const Counts n = follow(m, radii, entry, ray.direction, rng);
+    const double px = 64 * rng.uniform(), py = 64 * rng.uniform();
+    Vec3 entry, direction;
+    if (!camera.enter(px, py, entry, direction)) continue;
+    const Counts n = follow(m, radii, entry, direction, rng);
     sum.collisions += n.collisions, sum.strides += n.strides;
     for (std::size_t k = 0; k < n.by_step.size(); ++k) sum.by_step[k] += n.by_step[k];
     ++hits;
@@ -169,9 +170,9 @@ int scene_bound(const std::string& scene_file, const std::string& pack_file, int
   const stf::render::SceneGeometry geometry(scene, stf::render::FreeRadius::kGrid);
   stf::render::ImageSettings settings;
   settings.width = settings.height = size, settings.spp = spp;
-  const stf::render::Image brute = stf::render::render_scene(scene, stf::render::ScenePaths(scene, geometry), settings);
+  const stf::render::Image brute = stf::render::render(scene, stf::render::ScenePaths(scene, geometry), settings);
   const stf::render::ScenePaths ideal_paths(scene, geometry, &pack, {true, true});
-  const stf::render::Image ideal = stf::render::render_scene(scene, ideal_paths, settings);
+  const stf::render::Image ideal = stf::render::render(scene, ideal_paths, settings);
   const double paths = double(brute.paths), b = double(brute.collisions) / paths;
   const double c = double(ideal.collisions) / paths, n = double(ideal.strides) / paths;
   std::printf("{\"scene\": \"%s\", \"pack\": \"%s\", \"camera_paths\": %.0f, \"brute_collisions\": %.2f, "

@@ -8,8 +8,8 @@
 //  - the floor of a tabulated stride: one alias draw and uniform points, on random tables of
 //    256 KiB, 1 MiB and 4 MiB (TableDrawFloor);
 //  - inside the render loop: stf render's scene (its medium given by the first entry's albedo
-//    and g, sigma_t 100, radius TAU / 100) with no medium work (camera rays only: each path's
-//    set-up), brute force and in strides; each run's time less the set-up's, brute force's
+//    and g, sigma_t 100, radius TAU / 100, no shadow rays) with no medium work (a sphere of
+//    near vacuum: each path's set-up), brute force and in strides; each run's time less the set-up's, brute force's
 //    divided by its collisions, the strided one's less its collisions at that rate divided by
 //    its strides.
 // JSON on stdout.
@@ -25,8 +25,10 @@
 #include <vector>
 
 #include "stf/render/pixel_rng.h"
-#include "stf/render/render_scene.h"
-#include "stf/render/tracer.h"
+#include "stf/render/ladder.h"
+#include "stf/render/render.h"
+#include "stf/render/scene_geometry.h"
+#include "stf/render/sphere_scene.h"
 
 namespace {
 
@@ -153,37 +155,24 @@ double ns_per_collision(double albedo, double g, long n, double& sink) {
   return 1e9 * seconds_since(start) / double(n);
 }
 
-// Camera paths that find the sky at once: what every path costs before the medium.
-class SetUpOnly final : public stf::render::Method {
- public:
-  double radiance(const Vec3&, const Vec3& direction, PixelRng&, stf::render::PathCounters&) const override {
-    return stf::render::sky_radiance(direction);
-  }
-};
-
 struct LoopRun {
   double seconds = 0, collisions = 0, strides = 0;
+  int spheres = 0;
 };
 
-// Every pixel of a 64 x 64 image, `spp` paths each, through `method`.
-LoopRun render_loop(const stf::Medium& m, const stf::render::Method& method, int spp,
-                    double& sink) {
-  LoopRun run;
-  stf::render::PathCounters counters;
-  const auto start = Clock::now();
-  for (int p = 0; p < 64 * 64; ++p) {
-    PixelRng rng(5, std::uint64_t(p));
-    for (int s = 0; s < spp; ++s) {
-      const stf::render::Ray ray =
-          stf::render::camera_ray(p % 64 + rng.uniform(), p / 64 + rng.uniform(), 64, 64, m.radius);
-      Vec3 entry;
-      if (stf::render::enter_sphere(ray, m.radius, entry))
-        sink += method.radiance(entry, ray.direction, rng, counters);
-    }
-  }
-  run.seconds = seconds_since(start);
-  run.collisions = double(counters.collisions), run.strides = double(counters.strides);
-  return run;
+// Every pixel of a 64 x 64 image of stf render's sphere of `m`, `spp` paths each, on one thread,
+// by brute force (`pack` null) or in strides, without shadow rays (collisions and strides alone).
+LoopRun render_loop(const stf::Medium& m, const std::vector<stf::PackEntry>* pack, int spp) {
+  const stf::scene::RenderScene scene = stf::render::sphere_scene(m, 64, 64);
+  const stf::render::SceneGeometry geometry(scene, stf::render::FreeRadius::kQuery);
+  stf::render::PathOptions options;
+  options.next_event = false;
+  const stf::render::ScenePaths paths(scene, geometry, pack, options);
+  stf::render::ImageSettings s;
+  s.width = s.height = 64, s.spp = spp, s.seed = 5, s.run.threads = 1;
+  const stf::render::Image image = stf::render::render(scene, paths, s, stf::render::Channels::kOne);
+  const stf::SphereLookup* spheres = paths.spheres(0, 0);
+  return {image.seconds, double(image.collisions), double(image.strides), spheres ? spheres->size() : 0};
 }
 
 // Per entry of the pack: its strides (sampler, stride form, four paths in turn) and collisions.
@@ -241,10 +230,10 @@ int main(int argc, char** argv) {
   m.sigma_s = 100 * pack.front().model.albedo, m.sigma_a = 100 - m.sigma_s,
   m.g = pack.front().model.g;
   m.radius = tau / 100;
-  const stf::render::BruteForce brute(m);
-  const stf::render::ShellStrides strided(m, pack);
-  const LoopRun o = render_loop(m, SetUpOnly(), spp, sink);
-  const LoopRun b = render_loop(m, brute, spp, sink), s = render_loop(m, strided, spp, sink);
+  stf::Medium vacuum = m;  // camera paths that cross the sphere unscattered: every path's set-up
+  vacuum.sigma_s = vacuum.sigma_a = 1e-12;
+  const LoopRun o = render_loop(vacuum, nullptr, spp);
+  const LoopRun b = render_loop(m, nullptr, spp), s = render_loop(m, &pack, spp);
   const double ns_collision = 1e9 * (b.seconds - o.seconds) / b.collisions;
   const double ns_stride =
       s.strides > 0 ? (1e9 * (s.seconds - o.seconds) - ns_collision * s.collisions) / s.strides : 0;
@@ -255,7 +244,7 @@ int main(int argc, char** argv) {
       "\"ns_per_collision\": %.1f, \"ns_per_stride\": %.1f, \"stride_cost_collisions\": %.2f, "
       "\"brute_over_stf\": %.3f}, "
       "\"sink\": %g}\n",
-      tau, strided.spheres(), spp, o.seconds, b.seconds, b.collisions, s.seconds, s.collisions, s.strides,
+      tau, s.spheres, spp, o.seconds, b.seconds, b.collisions, s.seconds, s.collisions, s.strides,
       ns_collision, ns_stride, ns_stride / ns_collision, b.seconds / s.seconds, sink);
   return 0;
 }

@@ -259,5 +259,6 @@ void add_render_command(CLI::App& app);
 void add_import_command(CLI::App& app);
 void add_smooth_command(CLI::App& app);
 void add_mesh_command(CLI::App& app);
+void add_grid_command(CLI::App& app);
 
 }  // namespace stf::cli

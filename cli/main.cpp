@@ -84,6 +84,7 @@ int run(int argc, char** argv) {
   stf::cli::add_plot_command(app);
   stf::cli::add_render_command(app);
   stf::cli::add_mesh_command(app);
+  stf::cli::add_grid_command(app);
   refuse_empty_values(app);
   // From the start: Ctrl-C during any stage stops it cleanly (stages poll the flag).
   stf::cli::install_interrupt_handler();

@@ -1,5 +1,5 @@
-// `stf render`: the test scene (stf/render/render_scene.h) by brute force or through shell strides, to
-// show that a renderer using stf gets the brute-force picture, and how much sooner.
+// `stf render`: the one-sphere scene (stf/render/sphere_scene.h) by brute force or through shell
+// strides, to show that a renderer using stf gets the brute-force picture, and how much sooner.
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -21,7 +21,8 @@
 #include "stf/render/pack_recipe.h"
 #include "stf/precompute/precompute.h"
 #include "stf/render/render.h"
-#include "stf/render/render_scene.h"
+#include "stf/render/scene_geometry.h"
+#include "stf/render/sphere_scene.h"
 #include "stf/core/clock.h"
 #include "stf/fit/fit_settings.h"
 
@@ -177,8 +178,9 @@ std::string shortest(double x) {
   return buf;
 }
 
-// `strides` null for brute force.
-std::string stats_json(const render::Image& image, const PackBuild& build, const render::ShellStrides* strides) {
+// `spheres` null for brute force (or where the pack has none of the medium).
+std::string stats_json(const render::Image& image, const PackBuild& build, const SphereLookup* spheres) {
+  const int n = spheres ? spheres->size() : 0;
   const nlohmann::ordered_json j = {{"seconds", image.seconds},
                                     {"precompute_seconds", build.seconds},
                                     {"spheres_computed", build.spheres_computed},
@@ -186,9 +188,9 @@ std::string stats_json(const render::Image& image, const PackBuild& build, const
                                     {"collisions", image.collisions},
                                     {"strides", image.strides},
                                     {"mean_radiance", image.mean_radiance()},
-                                    {"spheres", strides ? strides->spheres() : 0},
-                                    {"smallest_sphere_tau", strides ? strides->smallest_tau() : 0.0},
-                                    {"largest_sphere_tau", strides ? strides->largest_tau() : 0.0}};
+                                    {"spheres", n},
+                                    {"smallest_sphere_tau", n > 0 ? spheres->tau(0) : 0.0},
+                                    {"largest_sphere_tau", n > 0 ? spheres->tau(n - 1) : 0.0}};
   return j.dump(2) + "\n";
 }
 
@@ -197,31 +199,26 @@ void run_sphere_render(const RenderOptions& o, const CLI::App& cmd) {
     if (!cmd.count(flag)) fail(std::string("give a scene file, or ") + flag + " (with --sigma-s, --sigma-a and --g) for the sphere");
   if (auto error = validate(o.medium, PrecomputeSettings{})) fail(*error);
   if (o.ideal_strides) fail("--ideal-strides applies to scene files (build/bench/stride_bound bounds the sphere)");
-  const bool stf = o.method == "stf";
   render::ImageSettings s = image_settings(o, cmd, 64, 64);
   RenderOutputs outputs(o);
+  const scene::RenderScene sc = render::sphere_scene(o.medium, s.width, s.height);
+  const render::SceneGeometry geometry(sc, render::FreeRadius::kQuery);  // a sphere's free radius is exact
 
   PackBuild build;
-  std::unique_ptr<render::Method> method;
-  const render::ShellStrides* strided = nullptr;
-  if (stf) {
-    auto strides = std::make_unique<render::ShellStrides>(
-        o.medium, o.pack.empty() ? build_pack(render::sphere_pack_recipe(o.medium, render_pack_settings(o)), o, s.run.threads, build) : read_pack_option(o.pack));
-    strided = strides.get();
-    if (!o.pack.empty() && strides->spheres() == 0)  // most likely the pack of another medium
-      fail("--pack: " + o.pack + " has no sphere of albedo " + shortest(o.medium.albedo()) + " and g " +
-           shortest(o.medium.g));
-    method = std::move(strides);
-  } else {
-    method = std::make_unique<render::BruteForce>(o.medium);
-  }
+  std::vector<PackEntry> pack;
+  if (o.method == "stf")
+    pack = o.pack.empty() ? build_pack(render::sphere_pack_recipe(o.medium, render_pack_settings(o)), o, s.run.threads, build)
+                          : read_pack_option(o.pack);
+  const render::ScenePaths paths(sc, geometry, o.method == "stf" ? &pack : nullptr);
+  if (!o.pack.empty() && !paths.spheres(0, 0))  // most likely the pack of another medium
+    fail("--pack: " + o.pack + " has no sphere of albedo " + shortest(o.medium.albedo()) + " and g " + shortest(o.medium.g));
   ProgressBar bar("render", o.quiet);
   s.run.cancel = &interrupted, s.run.progress = bar.progress();
-  render::Image image = render::render(o.medium, *method, s);
+  render::Image image = render::render(sc, paths, s, render::Channels::kOne);
   bar.finish();
   stop_if_interrupted();
   write_image(outputs.image, image, o, s.spp, std::int64_t(s.seed));
-  outputs.finish(image, o.exposure, stats_json(image, build, strided));
+  outputs.finish(image, o.exposure, stats_json(image, build, paths.spheres(0, 0)));
   if (!o.quiet)
     std::fprintf(stderr,
                  "stf render: %s, %lld paths in %.3g s (%.3g collisions, %.3g strides per path%s), mean radiance %.6g "
@@ -269,6 +266,11 @@ void add_render_command(CLI::App& app) {
   cmd->add_flag("--ideal-strides", o->ideal_strides,
                "Scenes, --method stf: each stride the true transport through its sphere, its collisions counted apart "
                "(ideal_collisions): the bound no model can beat, for benches");
+  cmd->add_option("--density-tolerance", o->density_tolerance,
+                  "Scenes, --method stf: strides in a density grid take balls whose density varies by at most this "
+                  "(max <= (1 + t) min; 0: constant only, exact up to the model; -1: no strides in grids)")
+      ->check(CLI::Range(-1.0, 10.0))
+      ->capture_default_str();
   cmd->add_option("--free-radius", o->free_radius,
                   "Scenes: a mesh's free radius from its distance grid (grid) or an exact Embree query (query)")
       ->check(CLI::IsMember({"grid", "query"}))

@@ -14,6 +14,7 @@
 #include "cli.h"
 #include "stf/core/table.h"
 #include "stf/render/render.h"
+#include "stf/render/scene_paths.h"
 #include "stf/scene/scene.h"
 
 namespace stf::cli {
@@ -24,6 +25,7 @@ struct RenderOptions {
   std::string width = "64", height = "64", spp, seed = "1", threads = "0";
   std::string method, pack, cache, output, exr, png, json, free_radius = "grid";
   double tolerance = 0.02, exposure = 0;
+  double density_tolerance = render::kDensityTolerance;  // strides in density grids
   std::string model = "hvmf:auto";  // the spheres' model family (a fitter's --model)
   bool quiet = false, ideal_strides = false;
 };

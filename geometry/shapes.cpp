@@ -132,4 +132,17 @@ std::vector<std::pair<std::string, TriangleMesh>> shipped_meshes() {
           {"thin_plate.obj", rounded_box({0.5, 0.04, 0.4}, 0.02, 3)}};
 }
 
+TriangleMesh box(const Vec3& lower, const Vec3& upper) {
+  TriangleMesh m;
+  for (int k = 0; k < 8; ++k)  // corner k: bit 0 picks x's upper side, bit 1 y's, bit 2 z's
+    m.vertices.push_back({k & 1 ? upper.x : lower.x, k & 2 ? upper.y : lower.y, k & 4 ? upper.z : lower.z});
+  // Each face's corners counter-clockwise seen from outside, as two triangles.
+  const std::uint32_t faces[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+  for (const auto& f : faces) {
+    m.triangles.push_back({f[0], f[1], f[2]});
+    m.triangles.push_back({f[0], f[2], f[3]});
+  }
+  return m;
+}
+
 }  // namespace stf::geometry

@@ -1,14 +1,11 @@
 #include "stf/render/image_file.h"
 
-#include <dlfcn.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <stdexcept>
 
 #include "image_codec.h"
+#include "stf/core/plugin.h"
 
 namespace stf::render {
 
@@ -16,47 +13,14 @@ namespace {
 
 constexpr const char* kCodecName = "libstf_image_codec.so";
 
-std::string folder_of(const std::string& path) {
-  const std::size_t slash = path.rfind('/');
-  return slash == std::string::npos ? "." : path.substr(0, slash);
-}
-
-// Where the codec may be: $STF_IMAGE_CODEC alone when set; else beside the file that holds this
-// code (the stf program, or the Python module, whose folder's parent holds it in a build tree),
-// beside the running program or in the library folder of its install prefix, and where
-// `cmake --install` puts it by default.
-std::vector<std::string> codec_candidates() {
-  if (const char* given = std::getenv("STF_IMAGE_CODEC")) return {given};
-  std::vector<std::string> where;
-  Dl_info info{};
-  if (dladdr(reinterpret_cast<void*>(&image_codec), &info) && info.dli_fname && std::string(info.dli_fname).find('/') != std::string::npos) {
-    where.push_back(folder_of(info.dli_fname) + "/" + kCodecName);
-    where.push_back(folder_of(info.dli_fname) + "/../" + kCodecName);
-  }
-  char exe[4096];
-  const ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
-  if (n > 0) {
-    const std::string program = folder_of(std::string(exe, std::size_t(n)));
-    where.push_back(program + "/" + kCodecName);
-    where.push_back(program + "/../" STF_IMAGE_CODEC_LIBDIR "/stf/" + kCodecName);  // an installed stf
-  }
-  where.push_back(STF_IMAGE_CODEC_INSTALLED);
-  return where;
-}
-
 const ImageCodec* load_codec() {
-  std::string why;
-  for (const std::string& path : codec_candidates()) {
-    if (void* module = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL)) {
-      using Export = const ImageCodec* (*)();
-      if (auto get = reinterpret_cast<Export>(dlsym(module, "stf_image_codec"))) return get();
-      why = path + " has no stf_image_codec";
-      continue;
-    }
-    if (why.empty()) why = dlerror();
-  }
-  throw std::runtime_error(std::string("cannot load the image codec ") + kCodecName +
-                           " (images are read and written through it and OpenImageIO): " + why);
+  const core::PluginPlace place{kCodecName, "STF_IMAGE_CODEC", STF_IMAGE_CODEC_LIBDIR, STF_IMAGE_CODEC_INSTALLED,
+                                reinterpret_cast<const void*>(&image_codec)};
+  using Export = const ImageCodec* (*)();
+  const auto get = reinterpret_cast<Export>(core::plugin_export(
+      place, "stf_image_codec",
+      std::string("the image codec ") + kCodecName + " (images are read and written through it and OpenImageIO)"));
+  return get();
 }
 
 double filmic(double x) {

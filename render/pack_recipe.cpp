@@ -6,7 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 
-#include "stf/render/tracer.h"
+#include "stf/render/ladder.h"
 
 namespace stf::render {
 
@@ -34,8 +34,11 @@ scene::Scene scene_pack_recipe(const scene::RenderScene& sc, const SceneGeometry
   pack.settings.tau_skip = HUGE_VAL;
   for (std::size_t i = 0; i < sc.objects.size(); ++i) {
     const scene::MediumSpec& m = sc.media[std::size_t(sc.objects[i].medium)];
+    // A grid's spheres: the ladder at its densest (a sphere of optical radius tau serves every
+    // density, at radius tau / sigma_t).
+    const double density = m.grid ? m.grid->max_density() : 1.0;
     for (std::size_t c = 0; c < 3; ++c) {
-      const Medium channel{m.sigma_s[c], m.sigma_a[c], m.g[c], 1};
+      const Medium channel{density * m.sigma_s[c], density * m.sigma_a[c], m.g[c], 1};
       const PackLadder l = stride_ladder(channel, geometry.largest_free_radius(int(i)));
       if (l.radius_max < l.radius_min) continue;
       pack.settings.tau_skip = std::min(pack.settings.tau_skip, l.smallest);

@@ -53,7 +53,7 @@ Image render_pixels(const ImageSettings& s, int channels, Pixel pixel) {
       },
       run.progress ? std::function<void()>(told) : std::function<void()>(), std::chrono::milliseconds(200));
   for (const PathCounters& c : counters) {  // integer sums
-    image.collisions += c.collisions, image.strides += c.strides, image.distance_queries += c.distance_queries;
+    image.collisions += c.collisions, image.null_collisions += c.null_collisions, image.strides += c.strides, image.distance_queries += c.distance_queries;
     image.shadow_rays += c.shadow_rays, image.rays += c.rays, image.ideal_collisions += c.ideal_collisions;
     image.once_scattered_exits += c.once_scattered_exits;
     for (int k = 0; k < kRayKinds; ++k) image.rays_by[k] += c.rays_by[k];
@@ -64,16 +64,15 @@ Image render_pixels(const ImageSettings& s, int channels, Pixel pixel) {
   return image;
 }
 
-// The camera ray through image position (px, py) in pixels (x right, y down from the top-left).
-Ray scene_camera_ray(const scene::CameraSpec& cam, double px, double py, int width, int height) {
+}  // namespace
+
+Ray camera_ray(const scene::CameraSpec& cam, double px, double py, int width, int height) {
   const Vec3 forward = normalize(cam.look_at - cam.position);
   const Vec3 right = normalize(cross(forward, cam.up)), up = cross(right, forward);
   const double half = std::tan(cam.fov * kPi / 360);
   const double sx = (2 * px / width - 1) * half * width / height, sy = (1 - 2 * py / height) * half;
   return {cam.position, normalize(forward + sx * right + sy * up)};
 }
-
-}  // namespace
 
 double Image::mean_radiance(int channel) const {
   double sum = 0;
@@ -83,29 +82,15 @@ double Image::mean_radiance(int channel) const {
   return n == 0 ? 0 : sum / double(n);
 }
 
-Image render(const Medium& medium, const Method& method, const ImageSettings& s) {
-  return render_pixels(s, 1, [&](std::int64_t p, PixelRng& rng, PathCounters& counters, Running* sums) {
+Image render(const scene::RenderScene& scene, const ScenePaths& paths, const ImageSettings& s, Channels channels) {
+  const int n = channels == Channels::kRgb ? 3 : 1;
+  return render_pixels(s, n, [&](std::int64_t p, PixelRng& rng, PathCounters& counters, Running* sums) {
     const int px = int(p % s.width), py = int(p / s.width);
     for (std::int64_t k = 0; k < s.spp; ++k) {
       if (s.run.cancelled()) return false;
       const double jx = rng.uniform(), jy = rng.uniform();
-      const Ray ray = camera_ray(px + jx, py + jy, s.width, s.height, medium.radius);
-      Vec3 entry;
-      sums[0].add(enter_sphere(ray, medium.radius, entry) ? method.radiance(entry, ray.direction, rng, counters)
-                                                          : sky_radiance(ray.direction));
-    }
-    return true;
-  });
-}
-
-Image render_scene(const scene::RenderScene& scene, const ScenePaths& paths, const ImageSettings& s) {
-  return render_pixels(s, 3, [&](std::int64_t p, PixelRng& rng, PathCounters& counters, Running* sums) {
-    const int px = int(p % s.width), py = int(p / s.width);
-    for (std::int64_t k = 0; k < s.spp; ++k) {
-      if (s.run.cancelled()) return false;
-      const double jx = rng.uniform(), jy = rng.uniform();
-      const Ray ray = scene_camera_ray(scene.camera, px + jx, py + jy, s.width, s.height);
-      const int c = int(k % 3);
+      const Ray ray = camera_ray(scene.camera, px + jx, py + jy, s.width, s.height);
+      const int c = int(k % n);
       sums[c].add(paths.radiance(ray.origin, ray.direction, c, rng, counters));
     }
     return true;

@@ -45,16 +45,17 @@ std::string placement_error(const geometry::TriangleMesh& mesh) {
 // triangle may collapse).
 geometry::TriangleMesh load_mesh(const scene::RenderScene& s, std::size_t i) {
   const scene::ObjectSpec& o = s.objects[i];
-  const std::string where = "objects[" + std::to_string(i) + "].mesh: ";
+  const std::string where = "objects[" + std::to_string(i) + (o.box ? "] (its grid's box): " : "].mesh: ");
   geometry::TriangleMesh mesh;
   try {
-    mesh = geometry::placed(geometry::read_obj(o.mesh), o.scale, o.translate);
+    const geometry::TriangleMesh unplaced = o.box ? geometry::box(o.box_bounds.lower, o.box_bounds.upper) : geometry::read_obj(o.mesh);
+    mesh = geometry::placed(unplaced, o.scale, o.translate);
   } catch (const std::runtime_error& e) {
     refuse(s, o.line, where + e.what());
   }
   std::string why = placement_error(mesh);
   if (why.empty()) why = geometry::mesh_error(mesh);
-  if (!why.empty()) refuse(s, o.line, where + o.mesh + ": " + why);
+  if (!why.empty()) refuse(s, o.line, where + (o.box ? "" : o.mesh + ": ") + why);
   return geometry::oriented_outward(std::move(mesh));
 }
 
@@ -120,7 +121,7 @@ void SceneGeometry::place_objects(const scene::RenderScene& s) {
   for (std::size_t i = 0; i < s.objects.size(); ++i) {
     const scene::ObjectSpec& o = s.objects[i];
     Object obj;
-    if (o.mesh.empty()) {
+    if (o.mesh.empty() && !o.box) {
       obj.sphere = true, obj.centre = o.translate, obj.radius = o.radius * o.scale, obj.inradius = obj.radius;
       const Vec3 r{obj.radius, obj.radius, obj.radius};
       obj.bounds = {obj.centre - r, obj.centre + r};

@@ -25,9 +25,10 @@ constexpr int kMaxEvents = 1 << 24;
 
 double power_heuristic(double a, double b) { return a * a / (a * a + b * b); }
 
-double phase_density(const ChannelMedium& m, double mu) { return hg_pdf_mu(m.g, mu) / (2 * kPi); }
+double phase_density(const ChannelMedium& m, double mu) { return hg_pdf_mu(m.g(), mu) / (2 * kPi); }
 
-Vec3 around(const Vec3& axis, double cos_theta, double sin_theta, double u) {
+// Inlined: it is a third of a collision's work, and a call costs the rest of the loop's registers.
+[[gnu::always_inline]] inline Vec3 around(const Vec3& axis, double cos_theta, double sin_theta, double u) {
   double sp, cp;
   sincos_2pi(u, sp, cp);
   return Frame::around(axis).to_world({sin_theta * cp, sin_theta * sp, cos_theta});
@@ -94,22 +95,24 @@ ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geo
   for (const scene::ObjectSpec& o : scene.objects) {
     ior_.push_back(o.ior);
     const scene::MediumSpec& spec = scene.media[std::size_t(o.medium)];
-    for (int c = 0; c < 3; ++c) {
-      ChannelMedium m;
-      m.sigma_t = spec.sigma_t(c), m.inv_sigma_t = 1 / m.sigma_t, m.albedo = spec.sigma_s[std::size_t(c)] / m.sigma_t;
-      m.g = spec.g[std::size_t(c)], m.hg = HgParams<double>::make(m.g);
+    for (std::size_t c = 0; c < 3; ++c) {
+      const double ss = spec.sigma_s[c], sa = spec.sigma_a[c], g = spec.g[c];
+      const ChannelMedium m = spec.grid ? ChannelMedium(ss, sa, g, {spec.grid, o.scale, o.translate, options.density_tolerance})
+                                        : ChannelMedium(ss, sa, g);
       std::shared_ptr<SphereLookup> lookup;
-      const auto same = std::find_if(built.begin(), built.end(), [&](const auto& b) { return b.first == std::pair(m.albedo, m.g); });
+      const auto same = std::find_if(built.begin(), built.end(), [&](const auto& b) { return b.first == std::pair(m.albedo(), g); });
       if (same != built.end()) {
         lookup = same->second;
       } else if (pack) {
-        lookup = std::make_shared<SphereLookup>(*pack, m.albedo, m.g);
+        lookup = std::make_shared<SphereLookup>(*pack, m.albedo(), g);
         if (lookup->size() == 0) lookup.reset();
-        built.push_back({{m.albedo, m.g}, lookup});
+        built.push_back({{m.albedo(), g}, lookup});
       }
-      m.refresh_below = std::log(0.5 / kShadowRoulette) * m.inv_sigma_t;
-      if (lookup) m.refresh_below = std::max(m.refresh_below, lookup->tau(lookup->size() - 1) * m.inv_sigma_t);
+      const double inv_sigma_t = 1 / m.sigma_t();
+      double refresh = std::log(0.5 / kShadowRoulette) * inv_sigma_t;
+      if (lookup) refresh = std::max(refresh, lookup->tau(lookup->size() - 1) * inv_sigma_t);
       media_.push_back(m);
+      refresh_below_.push_back(refresh);
       lookups_.push_back(std::move(lookup));
     }
   }
@@ -147,7 +150,7 @@ Vec3 ScenePaths::toward_sun(PixelRng& rng) const {
   return around(sun_, ct, std::sqrt(std::max(0.0, 1 - ct * ct)), rng.uniform());
 }
 
-double ScenePaths::transmittance(Vec3 x, const Vec3& l, int c, RayKind kind, PathCounters& counters) const {
+double ScenePaths::transmittance(Vec3 x, const Vec3& l, int c, RayKind kind, PixelRng& rng, PathCounters& counters) const {
   // Each crossing either leaves a medium (its chord attenuates) or enters one.
   double t = 1;
   for (int crossings = 0; crossings < 256; ++crossings) {
@@ -155,35 +158,35 @@ double ScenePaths::transmittance(Vec3 x, const Vec3& l, int c, RayKind kind, Pat
     counters.count_ray(kind);
     if (!h.found) return t;
     if (h.object == kGround || ior_[std::size_t(h.object)] != 1) return 0;  // opaque or specular
-    if (dot(l, h.normal) > 0) t *= std::exp(-medium(h.object, c).sigma_t * h.t);
+    if (dot(l, h.normal) > 0) t *= medium(h.object, c).transmittance(x, l, h.t, rng);
     x = geometry_.spawn(x + h.t * l, h.normal, l);
   }
   return 0;
 }
 
 template <typename Density, typename Start>
-double ScenePaths::light_ray(const LightSample& light, const ShadowVertex& v, double u, PathCounters& counters,
+double ScenePaths::light_ray(const LightSample& light, const ShadowVertex& v, PixelRng& rng, PathCounters& counters,
                              const Density& density, const Start& start) const {
   const double f = density(light.l);
   if (!(f > 0) || !(light.radiance > 0)) return 0;
   const double gain = f / light.pdf * power_heuristic(light.pdf, f);
   const double cast = std::min(1.0, gain * v.most / kShadowRoulette);
-  if (u >= cast) return 0;
+  if (v.u >= cast) return 0;
   ++counters.shadow_rays;
-  const double t = transmittance(start(light.l), light.l, v.channel, v.kind, counters);
+  const double t = transmittance(start(light.l), light.l, v.channel, v.kind, rng, counters);
   return gain * t * light.radiance / cast;
 }
 
 template <typename Density, typename Start>
-double ScenePaths::direct(const ShadowVertex& v, double u, PixelRng& rng, PathCounters& counters,
+double ScenePaths::direct(const ShadowVertex& v, PixelRng& rng, PathCounters& counters,
                           const Density& density, const Start& start) const {
   const int c = v.channel;
-  double sum = light_ray({toward_sun(rng), sun_pdf_, scene_.light.sun[std::size_t(c)]}, v, u, counters, density, start);
+  double sum = light_ray({toward_sun(rng), sun_pdf_, scene_.light.sun[std::size_t(c)]}, v, rng, counters, density, start);
   if (environment_) {
     LightSample map;
     map.l = environment_->sample(rng.uniform(), rng.uniform(), map.pdf);
     map.radiance = environment_->radiance(map.l, c);
-    if (map.pdf > 0) sum += light_ray(map, v, u, counters, density, start);
+    if (map.pdf > 0) sum += light_ray(map, v, rng, counters, density, start);
   }
   return sum;
 }
@@ -196,7 +199,7 @@ double ScenePaths::collision_gain_bound(const ChannelMedium& m, const Vec3& w) c
   // point nearest w (g >= 0; w itself where the disc holds it) or farthest from it (g < 0; -w
   // where the disc holds that).
   const double c = dot(w, sun_), s = std::sqrt(std::max(0.0, 1 - c * c));
-  const double extreme = m.g >= 0 ? (c >= cos_sun_ ? 1.0 : c * cos_sun_ + s * sin_sun_)
+  const double extreme = m.g() >= 0 ? (c >= cos_sun_ ? 1.0 : c * cos_sun_ + s * sin_sun_)
                                    : (-c >= cos_sun_ ? -1.0 : c * cos_sun_ - s * sin_sun_);
   return std::min(0.5, phase_density(m, extreme) / sun_pdf_);
 }
@@ -204,10 +207,10 @@ double ScenePaths::collision_gain_bound(const ChannelMedium& m, const Vec3& w) c
 void ScenePaths::nee_at_collision(State& s, int c, double bound, PixelRng& rng, PathCounters& counters) const {
   if (!next_event_ || ior_[std::size_t(s.inside)] != 1) return;  // behind a dielectric no shadow ray passes
   const ChannelMedium& m = medium(s.inside, c);
-  const double most = std::exp(-m.sigma_t * bound), u = rng.uniform();  // no direction leaves sooner
+  const double most = m.transmittance_bound(bound), u = rng.uniform();  // no direction leaves sooner
   if (!may_cast(u, most) || u >= collision_gain_bound(m, s.w) * most / kShadowRoulette) return;
   const Vec3 x = s.x, w = s.w;
-  s.radiance += s.throughput * direct({c, kShadowCollision, most}, u, rng, counters,
+  s.radiance += s.throughput * direct({c, kShadowCollision, most, u}, rng, counters,
                                       [&](const Vec3& l) { return phase_density(m, dot(w, l)); },
                                       [&](const Vec3&) { return x; });
 }
@@ -216,11 +219,11 @@ void ScenePaths::nee_at_exit(State& s, int c, PixelRng& rng, PathCounters& count
   s.after_nee = exit_mis_, s.scatter_medium = nullptr;
   s.bound = geometry_.free_radius(s.x, s.inside), ++counters.distance_queries;  // the next step's too
   s.tight = geometry_.method() != FreeRadius::kGrid;
-  const double most = std::exp(-medium(s.inside, c).sigma_t * s.bound), u = rng.uniform();
+  const double most = medium(s.inside, c).transmittance_bound(s.bound), u = rng.uniform();
   if (!may_cast(u, most)) return;
   const Vec3 x = s.x;
   const ExitVertex& exit = s.exit;
-  s.radiance += s.throughput * direct({c, kShadowExit, most}, u, rng, counters,
+  s.radiance += s.throughput * direct({c, kShadowExit, most, u}, rng, counters,
                                       [&](const Vec3& l) { return exit.density(l); }, [&](const Vec3&) { return x; });
 }
 
@@ -232,11 +235,11 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
   }
   if (const SphereLookup* spheres = this->spheres(s.inside, c)) {
     double r;
-    int k = spheres->find(m.sigma_t, s.bound, r);
+    int k = fitting_sphere(s, m, *spheres, r);
     if (k < 0 && !s.tight) {  // the one-cell bound fits none: look closer
       look_closer(s);
       ++counters.distance_queries;
-      k = spheres->find(m.sigma_t, s.bound, r);
+      k = fitting_sphere(s, m, *spheres, r);
     }
     if (k >= 0) {
       if (ideal_strides_) ideal_stride(s, m, r, rng, counters);
@@ -244,7 +247,7 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
       return true;
     }
   }
-  const double t = -std::log(rng.uniform_open0()) * m.inv_sigma_t;
+  const double t = m.flight(s.x, s.w, rng, counters);
   if (t >= s.bound && !s.tight) look_closer(s), ++counters.distance_queries;  // before a ray
   if (t >= s.bound) {  // the flight may reach the boundary
     const SurfaceHit h = geometry_.trace(s.x, s.w, t);
@@ -254,20 +257,26 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
       cross(s, h, rng);
       return true;
     }
+    if (!std::isfinite(t)) return false;  // a grid's flight past a boundary no ray found: lost in rounding
   }
   s.x += t * s.w;
   ++counters.collisions;
-  s.throughput *= m.albedo;
+  s.throughput *= m.albedo();
   // Carried, the bound loses the flight; refreshed, it is the closest look at once: in the
   // boundary shell the next step would otherwise ask again, for a sphere or before a ray.
   s.tight = false;
-  if (s.bound - t >= m.refresh_below) s.bound -= t;
+  if (s.bound - t >= refresh_below_[std::size_t(s.inside * 3 + c)]) s.bound -= t;
   else s.bound = 0, look_closer(s), ++counters.distance_queries;
   nee_at_collision(s, c, s.bound, rng, counters);
-  const CosSin<double> cs = sample_hg(m.hg, rng.uniform());
+  const CosSin<double> cs = sample_hg(m.hg(), rng.uniform());
   s.exit.sampler = nullptr, s.scatter_medium = &m, s.scatter_cos = cs.cos_theta, s.after_nee = next_event_;
   s.w = around(s.w, cs.cos_theta, cs.sin_theta, rng.uniform());
   return true;
+}
+
+int ScenePaths::fitting_sphere(const State& s, const ChannelMedium& m, const SphereLookup& spheres, double& r) const {
+  const StrideBall ball = m.stride_ball(s.x, s.bound, spheres.tau(0), spheres.tau(spheres.size() - 1));
+  return ball.radius > 0 ? spheres.find(ball.sigma_t, ball.radius, r) : -1;
 }
 
 void ScenePaths::look_closer(State& s) const {
@@ -300,7 +309,7 @@ void ScenePaths::stride(State& s, int c, const ShellSampler& sampler, double r, 
 void ScenePaths::ideal_stride(State& s, const ChannelMedium& m, double r, PixelRng& rng, PathCounters& counters) const {
   const Vec3 centre = s.x;
   for (;;) {
-    const double t = -std::log(rng.uniform_open0()) * m.inv_sigma_t;
+    const double t = m.flight(s.x, s.w, rng, counters);  // in a grid, its density as it is: exact
     const Vec3 o = s.x - centre;
     const double b = dot(o, s.w), out = -b + std::sqrt(std::max(0.0, b * b - (dot(o, o) - r * r)));
     if (t >= out) {  // leaves the sphere: its exit, on the sphere
@@ -309,8 +318,8 @@ void ScenePaths::ideal_stride(State& s, const ChannelMedium& m, double r, PixelR
     }
     s.x += t * s.w;
     ++counters.ideal_collisions;
-    s.throughput *= m.albedo, s.after_nee = false;
-    const CosSin<double> cs = sample_hg(m.hg, rng.uniform());
+    s.throughput *= m.albedo(), s.after_nee = false;
+    const CosSin<double> cs = sample_hg(m.hg(), rng.uniform());
     s.w = around(s.w, cs.cos_theta, cs.sin_theta, rng.uniform());
   }
   s.bound = -1;
@@ -343,7 +352,7 @@ bool ScenePaths::ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& r
   const Vec3 x = s.x;
   if (next_event_)  // nothing attenuates: every uniform passes may_cast
     s.radiance += s.throughput * albedo *
-                  direct({c, kShadowGround, 1.0}, rng.uniform(), rng, counters, [](const Vec3& l) { return std::max(0.0, l.y) / kPi; },
+                  direct({c, kShadowGround, 1.0, rng.uniform()}, rng, counters, [](const Vec3& l) { return std::max(0.0, l.y) / kPi; },
                          [&](const Vec3& l) { return geometry_.spawn(x, h.normal, l); });
   const double u = rng.uniform(), cos_o = std::sqrt(1 - u);  // cosine-weighted
   s.w = around(h.normal, cos_o, std::sqrt(u), rng.uniform());

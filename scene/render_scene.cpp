@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <set>
 
 #include "toml_values.h"
@@ -114,12 +115,41 @@ LightSpec read_light(const toml::value& t, const std::string& scene_path) {
   return l;
 }
 
-MediumSpec read_medium(const toml::value& t, std::size_t i) {
+// `bounds = [[x0, y0, z0], [x1, y1, z1]]`: a box of positive extent.
+media::Box read_bounds(const toml::value& v, const std::string& name) {
+  expect(v.is_array() && v.as_array().size() == 2, v, name + ": expected [[x0, y0, z0], [x1, y1, z1]]");
+  const media::Box b{position(v.as_array()[0], name), position(v.as_array()[1], name)};
+  expect(b.lower.x < b.upper.x && b.lower.y < b.upper.y && b.lower.z < b.upper.z, v,
+         name + ": inverted or empty: each upper coordinate must exceed its lower one");
+  return b;
+}
+
+// The medium's density grid, read now: a .vdb, or a .npy with `bounds`.
+void read_grid(const toml::value& t, const std::string& where, const std::string& scene_path, MediumSpec& m) {
+  m.grid_file = input_file(t.at("grid"), where + "grid", scene_path);
+  const bool npy = m.grid_file.size() >= 4 && m.grid_file.compare(m.grid_file.size() - 4, 4, ".npy") == 0;
+  std::optional<media::Box> bounds;
+  if (t.contains("bounds")) {
+    expect(npy, t.at("bounds"), where + "bounds: for a .npy grid only (a .vdb places its voxels itself)");
+    bounds = read_bounds(t.at("bounds"), where + "bounds");
+  }
+  expect(!npy || bounds, t.at("grid"), where + "bounds: a .npy grid needs bounds = [[x0, y0, z0], [x1, y1, z1]]");
+  try {
+    m.grid = std::make_shared<const media::DensityGrid>(media::DensityGrid::read(m.grid_file, bounds));
+  } catch (const std::exception& e) {
+    error_at(t.at("grid"), where + "grid: " + e.what());
+  }
+}
+
+MediumSpec read_medium(const toml::value& t, std::size_t i, const std::string& scene_path) {
   const std::string where = "media[" + std::to_string(i) + "].";
   expect(t.is_table(), t, "media[" + std::to_string(i) + "]: expected a table");
-  check_keys(t, where, {"name", "sigma_s", "sigma_a", "g", "preset", "density"});
+  check_keys(t, where, {"name", "sigma_s", "sigma_a", "g", "preset", "density", "grid", "bounds"});
   MediumSpec m;
   m.name = name_text(require(t, "name", where), where + "name");
+  expect(!t.contains("bounds") || t.contains("grid"), t.contains("bounds") ? t.at("bounds") : t,
+         where + "bounds: places a grid; there is none");
+  if (t.contains("grid")) read_grid(t, where, scene_path, m);
   if (t.contains("preset")) {
     expect(!t.contains("sigma_s") && !t.contains("sigma_a") && !t.contains("g"), t.at("preset"),
            where + "preset: give either a preset or sigma_s, sigma_a and g");
@@ -141,28 +171,40 @@ MediumSpec read_medium(const toml::value& t, std::size_t i) {
   return m;
 }
 
+// The index of the object's medium in the scene's media.
+int object_medium(const toml::value& t, const std::string& where, const RenderScene& s) {
+  const std::string medium = text(require(t, "medium", where), where + "medium");
+  for (std::size_t k = 0; k < s.media.size(); ++k)
+    if (s.media[k].name == medium) return int(k);
+  error_at(t.at("medium"), where + "medium: no [[media]] named '" + medium + "'");
+}
+
 ObjectSpec read_object(const toml::value& t, std::size_t i, const RenderScene& s) {
   const std::string where = "objects[" + std::to_string(i) + "].", object = "objects[" + std::to_string(i) + "]";
   expect(t.is_table(), t, object + ": expected a table");
   check_keys(t, where, {"mesh", "shape", "radius", "scale", "translate", "medium", "ior"});
   ObjectSpec o;
   o.line = int(t.location().line());
-  expect(t.contains("mesh") != t.contains("shape"), t, object + ": give either mesh = \"FILE.obj\" or shape = \"sphere\"");
+  const int medium = object_medium(t, where, s);
+  const MediumSpec& m = s.media[std::size_t(medium)];
+  if (m.grid && !t.contains("mesh") && !t.contains("shape")) {  // the grid's box
+    o.box = true, o.box_bounds = m.grid->support();
+    expect(!t.contains("radius"), t.contains("radius") ? t.at("radius") : t, where + "radius: for shape = \"sphere\" only");
+  } else {
+    expect(t.contains("mesh") != t.contains("shape"), t,
+           object + ": give either mesh = \"FILE.obj\" or shape = \"sphere\"" + (m.grid ? " (or neither: the grid's box)" : ""));
+  }
   if (t.contains("mesh")) {
     o.mesh = input_file(t.at("mesh"), where + "mesh", s.path);
     expect(!t.contains("radius"), t.contains("radius") ? t.at("radius") : t, where + "radius: for shape = \"sphere\" only");
-  } else {
+  } else if (t.contains("shape")) {
     expect(text(t.at("shape"), where + "shape") == "sphere", t.at("shape"), where + "shape: only \"sphere\" is known");
     if (t.contains("radius")) o.radius = bounded(t, "radius", where, 1e-6, 1e6);
   }
   if (t.contains("scale")) o.scale = bounded(t, "scale", where, 1e-6, 1e6);
   if (t.contains("translate")) o.translate = position(t.at("translate"), where + "translate");
   if (t.contains("ior")) o.ior = bounded(t, "ior", where, 1, 4);
-  const std::string medium = text(require(t, "medium", where), where + "medium");
-  o.medium = -1;
-  for (std::size_t k = 0; k < s.media.size(); ++k)
-    if (s.media[k].name == medium) o.medium = int(k);
-  expect(o.medium >= 0, t.at("medium"), where + "medium: no [[media]] named '" + medium + "'");
+  o.medium = medium;
   return o;
 }
 
@@ -201,7 +243,7 @@ RenderScene read_render_scene(const std::string& path) {
   const auto& media = array_at(root, "media", "name, and sigma_s, sigma_a and g or a preset");
   std::set<std::string> names;
   for (std::size_t i = 0; i < media.size(); ++i) {
-    s.media.push_back(read_medium(media[i], i));
+    s.media.push_back(read_medium(media[i], i, path));
     expect(names.insert(s.media.back().name).second, media[i], "media[" + std::to_string(i) + "].name: used twice");
   }
   const auto& objects = array_at(root, "objects", "a mesh or shape, and a medium");

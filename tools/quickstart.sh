@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 packages=(cmake g++ make pkg-config libhdf5-dev libcli11-dev wcslib-dev libhealpix-cxx-dev
-          libceres-dev libeigen3-dev libxxhash-dev nlohmann-json3-dev libfmt-dev libopenimageio-dev libembree-dev libtoml11-dev libgtest-dev libbenchmark-dev python3-matplotlib python3-h5py
+          libceres-dev libeigen3-dev libxxhash-dev nlohmann-json3-dev libfmt-dev libopenimageio-dev libembree-dev libopenvdb-dev libboost-iostreams-dev libtoml11-dev libgtest-dev libbenchmark-dev python3-matplotlib python3-h5py
           python3-numpy openmpi-bin libopenmpi-dev pybind11-dev python3-dev python3-healpy)
 missing=()
 for p in "${packages[@]}"; do
@@ -35,6 +35,8 @@ fi
 cmake --build build -j "$(nproc)" --target stf stf_python
 
 mkdir -p out
+# The density grids of data/scenes/cloud.toml and cored_ball.toml (into data/scenes/grids/).
+/usr/bin/python3 bench/make_grids.py
 build/stf build data/scenes/default.toml --cache out/default-scene.cache -o out/default.stfpack
 build/stf report out/default.stfpack -o out/report
 build/stf --config data/default_medium.toml precompute -o out/default_healpix.h5
@@ -55,4 +57,5 @@ echo "quickstart: in out/: default.stfpack and report/ (report.md, PNGs, JSON),"
      "render_pair.png (Spot in milk behind glass by brute force and in strides, and the z-map of their difference)," \
      "default_alpha30.png (CSC above, HEALPix below)," \
      "default_vmf4_alpha30.png (table and fitted vmf:4 side by side);" \
+     "data/scenes/grids/ (the cloud's and the cored ball's density grids, for data/scenes/cloud.toml and cored_ball.toml);" \
      "Python: PYTHONPATH=build/python /usr/bin/python3 -c 'import stf' (docs/python.md)" >&2

@@ -211,3 +211,69 @@ TEST_F(SceneInputs, AFirstInterruptEndsMeshReadingAndTheGridWithinASecond) {
 }
 
 }  // namespace
+
+namespace {
+
+// A C-order .npy of `shape` with the raw little-endian `data` and dtype `descr` (format 1.0).
+std::string npy(const std::string& descr, const std::string& shape, const std::string& data, bool fortran = false) {
+  std::string header = "{'descr': '" + descr + "', 'fortran_order': " + (fortran ? "True" : "False") + ", 'shape': " + shape + ", }";
+  while ((10 + header.size() + 1) % 64 != 0) header += ' ';
+  header += '\n';
+  const std::uint16_t n = std::uint16_t(header.size());
+  return std::string("\x93NUMPY\x01\x00", 8) + std::string(reinterpret_cast<const char*>(&n), 2) + header + data;
+}
+
+std::string floats(std::vector<float> v) { return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(float)); }
+
+// A scene whose medium takes `grid` (lines of the [[media]] table) and whose object is its box.
+std::string grid_scene(const std::string& grid) {
+  return "[camera]\nposition = [0, 0, 3]\nwidth = 4\nheight = 4\n[[media]]\nname = \"m\"\nsigma_s = 2\nsigma_a = 0.1\n"
+         "g = 0.3\n" + grid + "[[objects]]\nmedium = \"m\"\n";
+}
+
+}  // namespace
+
+// Every bad grid a scene can name: one line naming the scene's line, the key, the file where
+// there is one and what is wrong; nothing written.
+TEST_F(SceneInputs, BadGridsAreRefusedInOneLine) {
+  const std::string good = floats(std::vector<float>(8, 1.0f));
+  write(out("good.npy"), npy("<f4", "(2, 2, 2)", good));
+  write(out("int.npy"), npy("<i4", "(2, 2, 2)", good));
+  write(out("flat.npy"), npy("<f4", "(8,)", good));
+  write(out("zero.npy"), npy("<f4", "(2, 0, 2)", ""));
+  write(out("fortran.npy"), npy("<f4", "(2, 2, 2)", good, true));
+  write(out("short.npy"), npy("<f4", "(2, 2, 2)", good.substr(0, 12)));
+  std::vector<float> negative(8, 1.0f), nan(8, 1.0f);
+  negative[5] = -1, nan[3] = std::nanf("");
+  write(out("negative.npy"), npy("<f4", "(2, 2, 2)", floats(negative)));
+  write(out("nan.npy"), npy("<f4", "(2, 2, 2)", floats(nan)));
+  write(out("empty.npy"), npy("<f4", "(2, 2, 2)", floats(std::vector<float>(8, 0.0f))));
+  write(out("huge.npy"), npy("<f4", "(100000, 100000, 100000)", good));
+  write(out("not.vdb"), "not a vdb file");
+  const std::string box = "bounds = [[-1, -1, -1], [1, 1, 1]]\n";
+  const std::vector<std::pair<std::string, std::vector<std::string>>> cases = {
+      {"grid = \"missing.npy\"\n" + box, {"media[0].grid: no such file", "missing.npy"}},
+      {"grid = \"good.npy\"\n", {"media[0].bounds: a .npy grid needs bounds"}},
+      {"grid = \"not.vdb\"\nbounds = [[-1, -1, -1], [1, 1, 1]]\n", {"media[0].bounds: for a .npy grid only"}},
+      {"grid = \"good.npy\"\nbounds = [[1, -1, -1], [-1, 1, 1]]\n", {"media[0].bounds: inverted"}},
+      {box, {"media[0].bounds: places a grid; there is none"}},
+      {"grid = \"int.npy\"\n" + box, {"media[0].grid:", "int.npy", "<i4"}},
+      {"grid = \"flat.npy\"\n" + box, {"media[0].grid:", "flat.npy"}},
+      {"grid = \"zero.npy\"\n" + box, {"media[0].grid:", "zero.npy"}},
+      {"grid = \"fortran.npy\"\n" + box, {"media[0].grid:", "fortran.npy"}},
+      {"grid = \"short.npy\"\n" + box, {"media[0].grid:", "short.npy"}},
+      {"grid = \"negative.npy\"\n" + box, {"media[0].grid:", "negative.npy"}},
+      {"grid = \"nan.npy\"\n" + box, {"media[0].grid:", "nan.npy"}},
+      {"grid = \"empty.npy\"\n" + box, {"media[0].grid:", "empty.npy"}},
+      {"grid = \"huge.npy\"\n" + box, {"media[0].grid:", "huge.npy"}},
+      {"grid = \"not.vdb\"\n", {"media[0].grid:", "not.vdb"}},
+  };
+  for (const auto& [lines, what] : cases) {
+    write(out("g.toml"), grid_scene(lines));
+    std::vector<std::string> names = what;
+    names.push_back("g.toml:");
+    expect_refused(render(out("g.toml")) + " -o " + out("image.h5"), names);
+  }
+  write(out("g.toml"), grid_scene("grid = \"good.npy\"\n" + box));
+  EXPECT_EQ(stf(render(out("g.toml")) + " -o " + out("image.h5")).status, 0);
+}

@@ -157,7 +157,7 @@ class SceneFuzz : public ::testing::Test {
         }
     render::ImageSettings s;
     s.width = s.height = 4, s.spp = 1, s.run.threads = 1;
-    const render::Image image = render::render_scene(sc, paths, s);
+    const render::Image image = render::render(sc, paths, s);
     for (double v : image.mean) EXPECT_TRUE(std::isfinite(v)) << current_case;
     ++rendered_;
   }

@@ -6,24 +6,38 @@
 #include <cmath>
 
 #include "stf/scene/plan.h"
+#include "stf/render/ladder.h"
 #include "stf/render/render.h"
+#include "stf/render/scene_geometry.h"
+#include "stf/render/sphere_scene.h"
 #include "stf/scene/scene.h"
 
 namespace stf::render {
 namespace {
 
+// The one-sphere form of stf render, as it renders: its scene, geometry and paths (brute force
+// without `pack`).
+struct SphereRender {
+  SphereRender(const Medium& m, int width, int height, const std::vector<PackEntry>* pack = nullptr)
+      : scene(sphere_scene(m, width, height)), geometry(scene, FreeRadius::kQuery), paths(scene, geometry, pack) {}
+  Image render(ImageSettings s) const { return stf::render::render(scene, paths, s, Channels::kOne); }
+  scene::RenderScene scene;
+  SceneGeometry geometry;
+  ScenePaths paths;
+};
+
 // exp(-sigma_t * chord) averaged over the pixel's area (a sub-pixel midpoint grid): what a
 // pixel of a pure absorber converges to. Camera rays head away from the sun, so the sky behind
 // is 1 everywhere.
-double pixel_transmittance(const Medium& m, int px, int py, int width, int height) {
+double pixel_transmittance(const Medium& m, const scene::CameraSpec& camera, int px, int py, int width, int height) {
   const int sub = 64;
   double sum = 0;
   for (int i = 0; i < sub; ++i)
     for (int j = 0; j < sub; ++j) {
-      const Ray ray = camera_ray(px + (i + 0.5) / sub, py + (j + 0.5) / sub, width, height, m.radius);
+      const Ray ray = camera_ray(camera, px + (i + 0.5) / sub, py + (j + 0.5) / sub, width, height);
       const double b = dot(ray.origin, ray.direction), c = dot(ray.origin, ray.origin) - m.radius * m.radius;
       const double chord = b * b > c && b < 0 ? 2 * std::sqrt(b * b - c) : 0;
-      sum += std::exp(-m.sigma_t() * chord) * sky_radiance(ray.direction);
+      sum += std::exp(-m.sigma_t() * chord) * kSphereSky;
     }
   return sum / (sub * sub);
 }
@@ -31,12 +45,12 @@ double pixel_transmittance(const Medium& m, int px, int py, int width, int heigh
 TEST(Render, PureAbsorberGivesTheTransmittance) {
   Medium m;
   m.sigma_s = 0, m.sigma_a = 1.5, m.g = 0, m.radius = 1;
-  BruteForce brute(m);
   ImageSettings s;
   s.width = s.height = 12;
   s.spp = 4000;
   s.seed = 7;
-  const Image image = render(m, brute, s);
+  const SphereRender sphere(m, s.width, s.height);
+  const Image image = sphere.render(s);
   // Each sample is 0 or 1 (absorbed or through): z-scores on the estimator's own variance.
   // Where every sample went through, the pixel (sky, or a sliver of the sphere's rim) absorbs
   // with a probability of a few per spp at most.
@@ -45,7 +59,7 @@ TEST(Render, PureAbsorberGivesTheTransmittance) {
   for (int py = 0; py < s.height; ++py)
     for (int px = 0; px < s.width; ++px) {
       const std::size_t i = std::size_t(py * s.width + px);
-      const double exact = pixel_transmittance(m, px, py, s.width, s.height);
+      const double exact = pixel_transmittance(m, sphere.scene.camera, px, py, s.width, s.height);
       const double sd = std::sqrt(image.variance_of_mean[i]);
       if (sd == 0) {
         EXPECT_NEAR(image.mean[i], exact, 5.0 / double(s.spp)) << "pixel " << px << ", " << py;
@@ -63,14 +77,14 @@ TEST(Render, PureAbsorberGivesTheTransmittance) {
 TEST(Render, SameImageForAnyThreadCount) {
   Medium m;
   m.sigma_s = 9, m.sigma_a = 0.2, m.g = 0.7, m.radius = 1;
-  BruteForce brute(m);
   ImageSettings s;
   s.width = 20, s.height = 14;
   s.spp = 8;
+  const SphereRender sphere(m, s.width, s.height);
   s.run.threads = 1;
-  const Image one = render(m, brute, s);
+  const Image one = sphere.render(s);
   s.run.threads = 3;
-  const Image three = render(m, brute, s);
+  const Image three = sphere.render(s);
   EXPECT_EQ(one.mean, three.mean);
   EXPECT_EQ(one.variance_of_mean, three.variance_of_mean);
   EXPECT_EQ(one.collisions, three.collisions);
@@ -80,12 +94,11 @@ TEST(Render, SameImageForAnyThreadCount) {
 TEST(Render, StridesWithoutSpheresAreBruteForce) {
   Medium m;
   m.sigma_s = 1.2, m.sigma_a = 0.3, m.g = 0.5, m.radius = 1;
-  BruteForce brute(m);
-  ShellStrides strides(m, {});
   ImageSettings s;
   s.width = s.height = 16;
   s.spp = 16;
-  const Image a = render(m, brute, s), b = render(m, strides, s);
+  const std::vector<PackEntry> none;
+  const Image a = SphereRender(m, s.width, s.height).render(s), b = SphereRender(m, s.width, s.height, &none).render(s);
   EXPECT_EQ(a.mean, b.mean);
   EXPECT_EQ(a.collisions, b.collisions);
   EXPECT_EQ(b.strides, 0);
@@ -94,14 +107,13 @@ TEST(Render, StridesWithoutSpheresAreBruteForce) {
 TEST(Render, CancelStopsEarly) {
   Medium m;
   m.sigma_s = 50, m.sigma_a = 0.01, m.g = 0.9, m.radius = 1;
-  BruteForce brute(m);
   ImageSettings s;
   s.spp = 1000000;
   std::atomic<bool> cancel{false};
   int calls = 0;
   s.run.cancel = &cancel;
   s.run.progress = [&](std::string_view, std::int64_t, std::int64_t) { ++calls, cancel = true; };
-  const Image image = render(m, brute, s);
+  const Image image = SphereRender(m, s.width, s.height).render(s);
   EXPECT_TRUE(cancel.load());
   EXPECT_LT(image.paths, std::int64_t(s.width) * s.height * s.spp);
 }

@@ -169,7 +169,7 @@ TEST_F(SceneRender, StridesWithoutSpheresAreBruteForceBitForBit) {
   const render::ScenePaths brute(sc, geometry), strided(sc, geometry, &none);
   render::ImageSettings s;
   s.width = s.height = 12, s.spp = 30, s.run.threads = 3;
-  const render::Image a = render::render_scene(sc, brute, s), b = render::render_scene(sc, strided, s);
+  const render::Image a = render::render(sc, brute, s), b = render::render(sc, strided, s);
   EXPECT_GT(a.collisions, 1000);
   EXPECT_EQ(a.mean, b.mean);
   EXPECT_EQ(a.variance_of_mean, b.variance_of_mean);

@@ -54,7 +54,7 @@ class RenderSanitize : public ::testing::Test {
 render::Image draw(const scene::RenderScene& sc, const render::ScenePaths& paths, int size, int spp, int threads) {
   render::ImageSettings s;
   s.width = s.height = size, s.spp = spp, s.seed = 3, s.run.threads = threads;
-  return render::render_scene(sc, paths, s);
+  return render::render(sc, paths, s);
 }
 
 void expect_finite(const render::Image& image, const std::string& what) {

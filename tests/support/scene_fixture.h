@@ -74,7 +74,7 @@ class SceneFixture : public ::testing::Test {
     const render::ScenePaths paths(sc, geometry, pack, options);
     render::ImageSettings s;
     s.width = s.height = size, s.spp = spp, s.seed = seed, s.run.threads = 2;
-    return render::render_scene(sc, paths, s);
+    return render::render(sc, paths, s);
   }
   std::filesystem::path dir_;
 };

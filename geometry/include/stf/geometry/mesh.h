@@ -79,5 +79,7 @@ TriangleMesh torus(double major_radius, double minor_radius, int rings, int side
 // A box of half-extents `half` whose edges and corners are rounded with `radius`
 // (radius < min(half)), `segments` quads per quarter circle.
 TriangleMesh rounded_box(const Vec3& half, double radius, int segments);
+// The box [lower, upper]: 8 corners, 12 triangles, outward oriented.
+TriangleMesh box(const Vec3& lower, const Vec3& upper);
 
 }  // namespace stf::geometry

@@ -15,9 +15,10 @@ namespace stf::render {
 // with `settings` (scene::Settings' defaults are the renders' own).
 scene::Scene sphere_pack_recipe(const Medium& m, scene::Settings settings);
 
-// The spheres a scene's strides need: every object's medium in every channel, from the smallest
-// sphere that pays to the largest that fits in the object (stride_ladder; the plan shares equal
-// spheres), computed with `settings`. Media are named "NAME (R)", "NAME (G)", "NAME (B)".
+// The spheres a scene's strides need: every object's medium in every channel (a grid's at its
+// largest density), from the smallest sphere that pays to the largest that fits in the object
+// (stride_ladder; the plan shares equal spheres), computed with `settings`. Media are named
+// "NAME (R)", "NAME (G)", "NAME (B)".
 scene::Scene scene_pack_recipe(const scene::RenderScene& scene, const SceneGeometry& geometry, scene::Settings settings);
 
 // Where packs built for renders are cached: $STF_CACHE_DIR, else $XDG_CACHE_HOME/stf, else

@@ -1,5 +1,6 @@
-// Rendering the scene of scene.h with one of the methods of tracer.h: every pixel's samples
-// come from the pixel's own random stream, so the image is the same for any thread count.
+// Rendering a scene through its camera paths (scene_paths.h), brute force or strided: every
+// pixel's samples come from the pixel's own random stream, so the image is the same for any
+// thread count.
 #pragma once
 
 #include <atomic>
@@ -8,9 +9,7 @@
 #include <vector>
 
 #include "stf/core/parallel.h"
-#include "stf/render/render_scene.h"
 #include "stf/render/scene_paths.h"
-#include "stf/render/tracer.h"
 
 namespace stf::render {
 
@@ -26,19 +25,28 @@ struct Image {
   std::vector<double> mean;              // [height * width * channels], row 0 at the top
   std::vector<double> variance_of_mean;  // sample variance / samples, per pixel and channel
   double seconds = 0;                    // wall clock
-  std::int64_t paths = 0, collisions = 0, strides = 0, distance_queries = 0, shadow_rays = 0, rays = 0, ideal_collisions = 0,
+  std::int64_t paths = 0, collisions = 0, null_collisions = 0, strides = 0, distance_queries = 0, shadow_rays = 0, rays = 0, ideal_collisions = 0,
                once_scattered_exits = 0;
   std::int64_t rays_by[kRayKinds] = {};
   double mean_radiance(int channel = -1) const;  // over one channel, or all (-1)
 };
 
-// Renders a scene file's image in RGB (settings' width and height; the camera's field of view
-// and pose from the scene), each camera path one channel in turn (samples k, k + 3, ... of a
-// pixel carry channel k), through `paths` (brute force or strides).
-Image render_scene(const scene::RenderScene& scene, const ScenePaths& paths, const ImageSettings& settings);
+struct Ray {
+  Vec3 origin, direction;
+};
+// The camera ray through image position (px, py) in pixels (x right, y down, (0, 0) the top-left
+// corner) of a width x height image.
+Ray camera_ray(const scene::CameraSpec& camera, double px, double py, int width, int height);
 
-// Renders until done or settings.run is cancelled (then the image is incomplete: check the
-// flag), telling its progress in paths five times a second.
-Image render(const Medium& medium, const Method& method, const ImageSettings& settings);
+// How many channels an image carries: RGB (samples k, k + 3, ... of a pixel carry channel k), or
+// one (every sample carries channel 0: a scene whose media are the same in every channel).
+enum class Channels { kRgb, kOne };
+
+// Renders a scene's image (settings' width and height; the camera's field of view and pose from
+// the scene) through `paths` (brute force or strides) until done or settings.run is cancelled
+// (then the image is incomplete: check the flag), telling its progress in paths five times a
+// second.
+Image render(const scene::RenderScene& scene, const ScenePaths& paths, const ImageSettings& settings,
+             Channels channels = Channels::kRgb);
 
 }  // namespace stf::render

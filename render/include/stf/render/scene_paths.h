@@ -22,21 +22,16 @@
 
 #include "stf/hg.h"
 #include "stf/render/environment.h"
+#include "stf/render/medium.h"
 #include "stf/render/pixel_rng.h"
 #include "stf/render/scene_geometry.h"
-#include "stf/render/tracer.h"
+#include "stf/render/path_counters.h"
 
 namespace stf::render {
 
-// One object's medium in one channel.
-struct ChannelMedium {
-  double sigma_t = 0, inv_sigma_t = 0, albedo = 0, g = 0;
-  // After a collision the free radius is the one before less the flight (the distance is
-  // 1-Lipschitz) while that is at least this: the largest sphere's radius, or the depth below
-  // which shadow rays start to count (ln(0.5 / kShadowRoulette) / sigma_t).
-  double refresh_below = 0;
-  HgParams<double> hg{};
-};
+// The default tolerance of strides in density grids (docs/render.md, "Strides through media that
+// vary": its bias, measured).
+inline constexpr double kDensityTolerance = 0.1;
 
 // How ScenePaths follows paths beyond what the scene says.
 struct PathOptions {
@@ -51,6 +46,10 @@ struct PathOptions {
   // ray was cast there, counting the light twice; for the test that shows the MIS weight at
   // exits is what keeps the image right.
   bool exit_mis = true;
+  // In a density grid, strides take balls over which the density varies by at most this
+  // (max <= (1 + tolerance) min); 0: only where it is constant (exact up to the model); below 0:
+  // no strides in grids.
+  double density_tolerance = kDensityTolerance;
 };
 
 class ScenePaths {
@@ -64,6 +63,7 @@ class ScenePaths {
   // The radiance of `channel` arriving at `origin` from direction -`direction`.
   double radiance(const Vec3& origin, const Vec3& direction, int channel, PixelRng& rng, PathCounters& counters) const;
 
+  // What a path in `object` sees in `channel`: homogeneous, or the object's density grid.
   const ChannelMedium& medium(int object, int channel) const { return media_[std::size_t(object * 3 + channel)]; }
   // The spheres a path in `object` strides through in `channel` (null: none).
   const SphereLookup* spheres(int object, int channel) const;
@@ -73,13 +73,14 @@ class ScenePaths {
   double escape(const State& s, int c) const;
   // A direction toward a uniform point of the sun's disc (density sun_pdf_ per sr).
   Vec3 toward_sun(PixelRng& rng) const;
-  double transmittance(Vec3 x, const Vec3& l, int c, RayKind kind, PathCounters& counters) const;
-  // A vertex that casts shadow rays: its path's channel, what its rays count as, and a bound on
-  // the transmittance from it toward any light (exp(-sigma_t free radius) in a medium).
+  double transmittance(Vec3 x, const Vec3& l, int c, RayKind kind, PixelRng& rng, PathCounters& counters) const;
+  // A vertex that casts shadow rays: its path's channel, what its rays count as, a bound on the
+  // transmittance from it toward any light (exp(-sigma_t free radius) in a medium), and the
+  // uniform that decides its rays (may_cast).
   struct ShadowVertex {
     int channel;
     RayKind kind;
-    double most;
+    double most, u;
   };
   // One uniform u decides a vertex's shadow rays: cast toward a light of gain g with probability
   // min(1, g most / kShadowRoulette), u below it. Before any light is drawn, u is held against
@@ -93,7 +94,7 @@ class ScenePaths {
   // the vertex's own density(l) of scattering into l, each cast or not by Russian roulette
   // against the most it could bring (kShadowRoulette); start(l) is where the ray toward l starts.
   template <typename Density, typename Start>
-  double direct(const ShadowVertex& v, double u, PixelRng& rng, PathCounters& counters, const Density& density,
+  double direct(const ShadowVertex& v, PixelRng& rng, PathCounters& counters, const Density& density,
                 const Start& start) const;
   // A direction toward a light, its density per sr and the light's radiance along it.
   struct LightSample {
@@ -101,7 +102,7 @@ class ScenePaths {
     double pdf = 0, radiance = 0;
   };
   template <typename Density, typename Start>
-  double light_ray(const LightSample& light, const ShadowVertex& v, double u, PathCounters& counters,
+  double light_ray(const LightSample& light, const ShadowVertex& v, PixelRng& rng, PathCounters& counters,
                    const Density& density, const Start& start) const;
   void nee_at_collision(State& s, int c, double bound, PixelRng& rng, PathCounters& counters) const;
   // At a stride's smooth exit in an index-matched medium (State::exit set): shadow rays weighted
@@ -111,6 +112,8 @@ class ScenePaths {
   bool ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& rng, PathCounters& counters) const;
   void cross(State& s, const SurfaceHit& h, PixelRng& rng) const;
   bool medium_step(State& s, int c, PixelRng& rng, PathCounters& counters) const;
+  // The largest sphere of `spheres` that fits at the path's point (its radius in r), or -1.
+  int fitting_sphere(const State& s, const ChannelMedium& m, const SphereLookup& spheres, double& r) const;
   // The tightest bound the geometry gives at the path's point (the grid's eight cells).
   void look_closer(State& s) const;
   void stride(State& s, int c, const ShellSampler& sampler, double r, PixelRng& rng, PathCounters& counters) const;
@@ -120,6 +123,10 @@ class ScenePaths {
   const scene::RenderScene& scene_;
   const SceneGeometry& geometry_;
   std::vector<ChannelMedium> media_;            // [objects * 3]
+  // [objects * 3]: after a collision the free radius is the one before less the flight (the
+  // distance is 1-Lipschitz) while that is at least this: the largest sphere's radius, or the
+  // depth below which shadow rays start to count (ln(0.5 / kShadowRoulette) / sigma_t).
+  std::vector<double> refresh_below_;
   std::vector<std::shared_ptr<SphereLookup>> lookups_;  // [objects * 3], null where none
   std::vector<double> ior_;                     // per object
   std::shared_ptr<const EnvironmentMap> environment_;  // in place of the sky, or null

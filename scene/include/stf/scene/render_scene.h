@@ -4,9 +4,11 @@
 // optional diffuse ground plane.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "stf/media/density_grid.h"
 #include "stf/scene/presets.h"
 #include "stf/vec3.h"
 
@@ -36,13 +38,21 @@ struct LightSpec {
 
 struct MediumSpec {
   std::string name;
-  Rgb sigma_s{}, sigma_a{}, g{};  // per scene unit
+  Rgb sigma_s{}, sigma_a{}, g{};  // per scene unit; per unit density too where the medium has a grid
   double sigma_t(int c) const { return sigma_s[std::size_t(c)] + sigma_a[std::size_t(c)]; }
+  // The density grid (`grid = "FILE"`, read with the scene), in the frame of each object filled
+  // with the medium; null for a homogeneous medium.
+  std::string grid_file;
+  std::shared_ptr<const media::DensityGrid> grid;
 };
 
 struct ObjectSpec {
   std::string mesh;       // path of an OBJ file (resolved against the scene's folder), or ""
-  double radius = 1;      // the analytic sphere's, when mesh is ""
+  double radius = 1;      // the analytic sphere's, when mesh is "" and box is false
+  // No mesh or shape, a medium with a grid: the object is the box of the grid's support (in its
+  // frame, before scale and translate).
+  bool box = false;
+  media::Box box_bounds;
   double scale = 1;
   Vec3 translate;
   int medium = 0;         // index into RenderScene::media
@@ -69,8 +79,9 @@ struct RenderScene {
 // recipe (stf/scene/scene.h); throws SceneError where it is no TOML that stf reads.
 bool is_render_scene(const std::string& path);
 
-// Reads and checks a render scene; throws SceneError "file:line: key: why" (unknown keys,
-// values of the wrong type or range, unknown presets or media, missing mesh files).
+// Reads and checks a render scene and its media's grids; throws SceneError "file:line: key: why"
+// (unknown keys, values of the wrong type or range, unknown presets or media, missing mesh files,
+// grids that cannot be read).
 RenderScene read_render_scene(const std::string& path);
 
 }  // namespace stf::scene

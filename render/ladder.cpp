@@ -1,11 +1,9 @@
-#include "stf/render/tracer.h"
+#include "stf/render/ladder.h"
 
 #include <algorithm>
 #include <cmath>
 
-#include <stf/lookup.h>
 #include <stf/math.h>
-#include <stf/vmf.h>
 
 namespace stf::render {
 
@@ -32,23 +30,6 @@ bool CollisionWalk::leaves_after_flight(Vec3& x, Vec3& w, double& throughput, Pi
   const CosSin<double> cs = sample_hg(hg_, rng.uniform());
   w = turn(w, cs.cos_theta, cs.sin_theta, rng.uniform());
   return false;
-}
-
-bool survives_roulette(double& throughput, PixelRng& rng) {
-  if (throughput >= kRouletteBelow) return true;
-  if (rng.uniform() * kRouletteBelow >= throughput) return false;
-  throughput = kRouletteBelow;
-  return true;
-}
-
-double BruteForce::radiance(const Vec3& entry, const Vec3& direction, PixelRng& rng, PathCounters& counters) const {
-  Vec3 x = entry, w = direction;
-  double throughput = 1;
-  for (;;) {
-    if (walk_.leaves_after_flight(x, w, throughput, rng)) return throughput * sky_radiance(w);
-    ++counters.collisions;
-    if (!survives_roulette(throughput, rng)) return 0;
-  }
 }
 
 double crossing_collisions(double tau, double g, int paths) {
@@ -95,45 +76,6 @@ PackLadder pack_ladder(const Medium& m) {
 PackLadder stride_ladder(const Medium& m, double room) {
   const double smallest = smallest_paying_tau(m.g, kStrideCost), sigma_t = m.sigma_t();
   return {smallest, kSphereRatio, smallest / sigma_t, std::min(room, kLargestSphere / sigma_t)};
-}
-
-ShellStrides::ShellStrides(const Medium& m, const std::vector<PackEntry>& pack)
-    : walk_(m), spheres_(pack, m.albedo(), m.g) {
-  for (int i = 0; i < spheres_.size(); ++i) {
-    const double r = spheres_.tau(i) / m.sigma_t(), room = m.radius - r;
-    radius_.push_back(r);
-    limit2_.push_back(room >= 0 ? room * room : -1.0);
-  }
-}
-
-int ShellStrides::fitting_sphere(const Vec3& x) const {
-  // limit2_ descends: the spheres that fit are a prefix; counting has no branch to mispredict.
-  const double d2 = dot(x, x);
-  int i = -1;
-  for (double limit : limit2_) i += d2 <= limit;
-  return i;
-}
-
-double ShellStrides::radiance(const Vec3& entry, const Vec3& direction, PixelRng& rng, PathCounters& counters) const {
-  Vec3 x = entry, w = direction;
-  double throughput = 1;
-  for (;;) {
-    // The largest precomputed sphere around x inside the medium: a path starting at its
-    // centre in flight is exactly what the sphere's model describes (free paths are
-    // memoryless), so the path jumps to the sphere's exit.
-    const int sphere = fitting_sphere(x);
-    if (sphere >= 0) {
-      const StrideForm& s = spheres_.stride_form(sphere);
-      const Stride exit = s.jump(x, w, radius_[std::size_t(sphere)], [&rng] { return rng.uniform(); });
-      x = exit.point, w = exit.direction;
-      throughput *= s.escape_probability();
-      ++counters.strides;
-    } else {
-      if (walk_.leaves_after_flight(x, w, throughput, rng)) return throughput * sky_radiance(w);
-      ++counters.collisions;
-    }
-    if (!survives_roulette(throughput, rng)) return 0;
-  }
 }
 
 }  // namespace stf::render
