@@ -1,8 +1,8 @@
 #!/usr/bin/python3
 """The density grids of the shipped grid scenes, written into data/scenes/grids/ (not in git):
-  cored_ball.npy   64^3 over [-1, 1]^3: density 1 within radius 0.45 (the constant core, where
-                   strides are exact at any tolerance), falling to about 0.4 at radius 1 with a
-                   three-wave ripple of +-20% growing outward (where the tolerance decides);
+  cored_ball.npy   64^3 over [-1, 1]^3: density 1 within radius 0.8 (the constant core, where
+                   strides are exact at any tolerance), falling to about 0.5 at radius 1 with a
+                   three-wave ripple of up to +-20% growing outward (where the tolerance decides);
   cloud.vdb        `stf grid cloud --size SIZE` (a procedural cumulus, docs/render.md).
 Usage: bench/make_grids.py [--size 128]   (needs build/stf and Debian's python3-numpy)
 """
@@ -21,9 +21,9 @@ def cored_ball(n=64):
     c = (np.arange(n) + 0.5) / n * 2 - 1
     x, y, z = np.meshgrid(c, c, c, indexing="ij")
     r = np.sqrt(x * x + y * y + z * z)
-    s = np.clip((r - 0.45) / 0.55, 0, 1)
+    s = np.clip((r - 0.8) / 0.2, 0, 1)
     ripple = np.sin(9 * x) * np.sin(7 * y + 1) * np.sin(8 * z + 2)
-    return ((1 - 0.6 * s) * (1 + 0.2 * s * ripple)).astype(np.float32)
+    return ((1 - 0.5 * s) * (1 + 0.2 * s * ripple)).astype(np.float32)
 
 
 def main():

@@ -40,14 +40,11 @@ StrideBall ChannelMedium::grid_stride_ball(const Vec3& x, double free_radius, do
   if (tolerance_ < 0) return {};
   const Vec3 u = (x - translate_) / scale_;
   const double sigma_t = sigma_t_unit_ * grid_->density(u);
-  if (!(sigma_t > 0)) return {};
+  if (!(sigma_t > 0) || !within_tolerance(grid_->range_over_ball(u, 0))) return {};  // every ball holds x's brick
   // No sphere of the ladder is larger than largest_tau at the ball's least density.
   double r = std::min(free_radius, largest_tau * (1 + tolerance_) / sigma_t);
-  while (sigma_t * r >= smallest_tau) {
-    const auto [least, most] = grid_->range_over_ball(u, r / scale_);
-    if (least > 0 && most <= (1 + tolerance_) * least) return {r, sigma_t};
-    r *= 0.5;
-  }
+  for (; sigma_t * r >= smallest_tau; r *= 0.5)
+    if (within_tolerance(grid_->range_over_ball(u, r / scale_))) return {r, sigma_t};
   return {};
 }
 

@@ -81,6 +81,10 @@ class ChannelMedium {
   double grid_flight(const Vec3& x, const Vec3& w, PixelRng& rng, PathCounters& counters) const;
   double grid_transmittance(const Vec3& x, const Vec3& w, double length, PixelRng& rng) const;
   StrideBall grid_stride_ball(const Vec3& x, double free_radius, double smallest_tau, double largest_tau) const;
+  // Whether a density range [least, most] is one a stride may take: least > 0, most <= (1 + tolerance) least.
+  bool within_tolerance(std::pair<double, double> range) const {
+    return range.first > 0 && range.second <= (1 + tolerance_) * range.first;
+  }
 
   double sigma_t_max_ = 0, sigma_t_min_ = 0, inv_sigma_t_ = 0, albedo_ = 0, g_ = 0;
   HgParams<double> hg_{};
