@@ -37,15 +37,18 @@ double ChannelMedium::grid_transmittance(const Vec3& x, const Vec3& w, double le
 
 StrideBall ChannelMedium::grid_stride_ball(const Vec3& x, double free_radius, double smallest_tau,
                                            double largest_tau) const {
-  if (tolerance_ < 0) return {};
+  if (tolerance_ < 0) return {0, 0, true};
   const Vec3 u = (x - translate_) / scale_;
+  // Every ball holds x's brick: where it varies too much, none may be taken (asked first: most
+  // collisions in a varying grid end here).
+  if (!within_tolerance(grid_->range_over_ball(u, 0))) return {0, 0, true};
   const double sigma_t = sigma_t_unit_ * grid_->density(u);
-  if (!(sigma_t > 0) || !within_tolerance(grid_->range_over_ball(u, 0))) return {};  // every ball holds x's brick
   // No sphere of the ladder is larger than largest_tau at the ball's least density.
   double r = std::min(free_radius, largest_tau * (1 + tolerance_) / sigma_t);
-  for (; sigma_t * r >= smallest_tau; r *= 0.5)
-    if (within_tolerance(grid_->range_over_ball(u, r / scale_))) return {r, sigma_t};
-  return {};
+  bool shrunk = r < free_radius;
+  for (; sigma_t * r >= smallest_tau; r *= 0.5, shrunk = true)
+    if (within_tolerance(grid_->range_over_ball(u, r / scale_))) return {r, sigma_t, shrunk};
+  return {0, 0, shrunk};
 }
 
 }  // namespace stf::render

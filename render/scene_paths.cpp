@@ -110,7 +110,9 @@ ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geo
       }
       const double inv_sigma_t = 1 / m.sigma_t();
       double refresh = std::log(0.5 / kShadowRoulette) * inv_sigma_t;
-      if (lookup) refresh = std::max(refresh, lookup->tau(lookup->size() - 1) * inv_sigma_t);
+      // Where the density limits strides more than the boundary does (a grid), a fresher bound
+      // would rarely buy a stride: the carried one serves.
+      if (lookup && m.homogeneous()) refresh = std::max(refresh, lookup->tau(lookup->size() - 1) * inv_sigma_t);
       media_.push_back(m);
       refresh_below_.push_back(refresh);
       lookups_.push_back(std::move(lookup));
@@ -235,11 +237,12 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
   }
   if (const SphereLookup* spheres = this->spheres(s.inside, c)) {
     double r;
-    int k = fitting_sphere(s, m, *spheres, r);
-    if (k < 0 && !s.tight) {  // the one-cell bound fits none: look closer
+    bool by_medium = false;
+    int k = fitting_sphere(s, m, *spheres, r, by_medium);
+    if (k < 0 && !s.tight && !by_medium) {  // the one-cell bound fits none: look closer
       look_closer(s);
       ++counters.distance_queries;
-      k = fitting_sphere(s, m, *spheres, r);
+      k = fitting_sphere(s, m, *spheres, r, by_medium);
     }
     if (k >= 0) {
       if (ideal_strides_) ideal_stride(s, m, r, rng, counters);
@@ -274,8 +277,10 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
   return true;
 }
 
-int ScenePaths::fitting_sphere(const State& s, const ChannelMedium& m, const SphereLookup& spheres, double& r) const {
+int ScenePaths::fitting_sphere(const State& s, const ChannelMedium& m, const SphereLookup& spheres, double& r,
+                               bool& by_medium) const {
   const StrideBall ball = m.stride_ball(s.x, s.bound, spheres.tau(0), spheres.tau(spheres.size() - 1));
+  by_medium = ball.by_medium;
   return ball.radius > 0 ? spheres.find(ball.sigma_t, ball.radius, r) : -1;
 }
 

@@ -23,9 +23,11 @@
 namespace stf::render {
 
 // A ball a stride may take: its radius (0: none) and the sigma_t of the homogeneous medium whose
-// shell transport stands for it.
+// shell transport stands for it; by_medium when the medium, not the free radius, limited it (then
+// a closer look at the geometry cannot give a larger one).
 struct StrideBall {
   double radius = 0, sigma_t = 0;
+  bool by_medium = false;
 };
 
 // A density grid placed in an object, x_grid = (x - translate) / scale, and how far its density

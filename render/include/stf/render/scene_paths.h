@@ -31,7 +31,7 @@ namespace stf::render {
 
 // The default tolerance of strides in density grids (docs/render.md, "Strides through media that
 // vary": its bias, measured).
-inline constexpr double kDensityTolerance = 0.1;
+inline constexpr double kDensityTolerance = 0.5;
 
 // How ScenePaths follows paths beyond what the scene says.
 struct PathOptions {
@@ -112,8 +112,9 @@ class ScenePaths {
   bool ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& rng, PathCounters& counters) const;
   void cross(State& s, const SurfaceHit& h, PixelRng& rng) const;
   bool medium_step(State& s, int c, PixelRng& rng, PathCounters& counters) const;
-  // The largest sphere of `spheres` that fits at the path's point (its radius in r), or -1.
-  int fitting_sphere(const State& s, const ChannelMedium& m, const SphereLookup& spheres, double& r) const;
+  // The largest sphere of `spheres` that fits at the path's point (its radius in r), or -1;
+  // by_medium when the medium, not the free radius, limited it.
+  int fitting_sphere(const State& s, const ChannelMedium& m, const SphereLookup& spheres, double& r, bool& by_medium) const;
   // The tightest bound the geometry gives at the path's point (the grid's eight cells).
   void look_closer(State& s) const;
   void stride(State& s, int c, const ShellSampler& sampler, double r, PixelRng& rng, PathCounters& counters) const;
