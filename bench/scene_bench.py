@@ -247,14 +247,36 @@ def density_plot(rows, factors, path):
     ax = axes[0][0]
     ax.plot(factors, [r["equal_error_speedup"] for r in rows], "o-", label="stf strides (equal error)")
     ax.plot(factors, [r.get("bound_at_measured_cost", np.nan) for r in rows], "s--", label="bound B / (C + c N) at the measured c")
+    ax.plot(factors, [r["brute"]["collisions_per_path"] / r["stf"]["collisions_per_path"] for r in rows], "d-.",
+            label="bound with free strides, B / C")
     ax.plot(list(THEIRS), list(THEIRS.values()), "^:", label="learned STF, EG 2021 (equal sample count, approximate steps)")
     ax.set_xscale("log", base=2)
     ax.set_xlabel("density (times the scene's)")
     ax.set_ylabel("speed-up over brute force")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
+    if biased:
+        bias_panel(axes[0][1], rows, factors)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
+
+
+def bias_panel(ax, rows, factors):
+    """The strided mean's bias against the long reference per channel (+-2 standard errors), and
+    the block noise of a 256-spp render it is held against."""
+    for c, colour in enumerate("rgb"):
+        bias = [100 * r["bias_relative"][c] for r in rows]
+        se = [200 * r["bias_relative_se"][c] for r in rows]
+        ax.errorbar(factors, bias, yerr=se, fmt="o-", color=colour, capsize=3, label=f"bias +- 2 se, {'RGB'[c]}")
+        noise = [100 * r["noise_256spp_block_relative"][c] for r in rows]
+        ax.plot(factors, noise, ":", color=colour, lw=1)
+        ax.plot(factors, [-n for n in noise], ":", color=colour, lw=1)
+    ax.axhline(0, color="k", lw=0.5)
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel("density (times the scene's)")
+    ax.set_ylabel("bias (%); dotted: a 256-spp render's block noise")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
 
 
 def reference_image(a, stf, scene, name):
