@@ -2,9 +2,8 @@
 // the sphere: the start of the benches' own reference loops through that scene.
 #pragma once
 
-#include <cmath>
-
 #include "stf/render/render.h"
+#include "stf/render/scene_geometry.h"
 #include "stf/render/sphere_scene.h"
 
 namespace bench {
@@ -12,21 +11,21 @@ namespace bench {
 // The rays of a 64 x 64 image of the sphere of `m`.
 class SphereCamera {
  public:
-  explicit SphereCamera(const stf::Medium& m) : radius_(m.radius), camera_(stf::render::sphere_scene(m, 64, 64).camera) {}
+  explicit SphereCamera(const stf::Medium& m)
+      : scene_(stf::render::sphere_scene(m, 64, 64)), geometry_(scene_, stf::render::FreeRadius::kQuery) {}
   // The ray through image position (px, py): false when it misses the sphere, else its entry
   // point and direction.
   bool enter(double px, double py, stf::Vec3& entry, stf::Vec3& direction) const {
-    const stf::render::Ray ray = stf::render::camera_ray(camera_, px, py, 64, 64);
-    const double b = stf::dot(ray.origin, ray.direction), c = stf::dot(ray.origin, ray.origin) - radius_ * radius_;
-    const double disc = b * b - c;
-    if (disc <= 0 || b >= 0) return false;
-    entry = ray.origin + (-b - std::sqrt(disc)) * ray.direction, direction = ray.direction;
+    const stf::render::Ray ray = stf::render::camera_ray(scene_.camera, px, py, 64, 64);
+    const stf::render::SurfaceHit hit = geometry_.trace(ray.origin, ray.direction);
+    if (!hit.found) return false;
+    entry = ray.origin + hit.t * ray.direction, direction = ray.direction;
     return true;
   }
 
  private:
-  double radius_;
-  stf::scene::CameraSpec camera_;
+  stf::scene::RenderScene scene_;
+  stf::render::SceneGeometry geometry_;
 };
 
 }  // namespace bench

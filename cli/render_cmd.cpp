@@ -150,28 +150,6 @@ render::ImageSettings image_settings(const RenderOptions& o, const CLI::App& cmd
 
 namespace {
 
-void write_image(AtomicOutput& out, const render::Image& image, const RenderOptions& o, std::int64_t spp,
-                 std::int64_t seed) {
-  H5::Exception::dontPrint();
-  h5::MemoryFile memory;
-  {
-    H5::H5File& file = memory.file();
-    h5::put_attr(file, "method", o.method);
-    h5::put_attr(file, "spp", spp);
-    h5::put_attr(file, "seed", seed);
-    h5::put_attr(file, "seconds", image.seconds);
-    h5::put_attr(file, "sigma_s", o.medium.sigma_s);
-    h5::put_attr(file, "sigma_a", o.medium.sigma_a);
-    h5::put_attr(file, "g", o.medium.g);
-    h5::put_attr(file, "radius", o.medium.radius);
-    H5::Group g = file.createGroup("/image");
-    const std::vector<hsize_t> dims{hsize_t(image.height), hsize_t(image.width)};
-    h5::put_dataset(g, "mean", dims, image.mean.data());
-    h5::put_dataset(g, "variance_of_mean", dims, image.variance_of_mean.data());
-  }
-  out.stage(memory.bytes());
-}
-
 std::string shortest(double x) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%g", x);
@@ -209,7 +187,11 @@ void run_sphere_render(const RenderOptions& o, const CLI::App& cmd) {
   if (o.method == "stf")
     pack = o.pack.empty() ? build_pack(render::sphere_pack_recipe(o.medium, render_pack_settings(o)), o, s.run.threads, build)
                           : read_pack_option(o.pack);
-  const render::ScenePaths paths(sc, geometry, o.method == "stf" ? &pack : nullptr);
+  // As the sphere form has always been defined (docs/render.md): radiance only where a path leaves,
+  // no shadow rays; scenes cast them.
+  render::PathOptions options;
+  options.next_event = false;
+  const render::ScenePaths paths(sc, geometry, o.method == "stf" ? &pack : nullptr, options);
   if (!o.pack.empty() && !paths.spheres(0, 0))  // most likely the pack of another medium
     fail("--pack: " + o.pack + " has no sphere of albedo " + shortest(o.medium.albedo()) + " and g " + shortest(o.medium.g));
   ProgressBar bar("render", o.quiet);
@@ -217,7 +199,8 @@ void run_sphere_render(const RenderOptions& o, const CLI::App& cmd) {
   render::Image image = render::render(sc, paths, s, render::Channels::kOne);
   bar.finish();
   stop_if_interrupted();
-  write_image(outputs.image, image, o, s.spp, std::int64_t(s.seed));
+  write_image(outputs.image, image, o, s,
+              {{"sigma_s", o.medium.sigma_s}, {"sigma_a", o.medium.sigma_a}, {"g", o.medium.g}, {"radius", o.medium.radius}});
   outputs.finish(image, o.exposure, stats_json(image, build, paths.spheres(0, 0)));
   if (!o.quiet)
     std::fprintf(stderr,
@@ -228,6 +211,27 @@ void run_sphere_render(const RenderOptions& o, const CLI::App& cmd) {
 }
 
 }  // namespace
+
+void write_image(AtomicOutput& out, const render::Image& image, const RenderOptions& o, const render::ImageSettings& s,
+                 const std::vector<std::pair<std::string, double>>& numbers, const std::string& scene) {
+  H5::Exception::dontPrint();
+  h5::MemoryFile memory;
+  {
+    H5::H5File& file = memory.file();
+    h5::put_attr(file, "method", o.method);
+    h5::put_attr(file, "spp", s.spp);
+    h5::put_attr(file, "seed", std::int64_t(s.seed));
+    h5::put_attr(file, "seconds", image.seconds);
+    for (const auto& [name, value] : numbers) h5::put_attr(file, name.c_str(), value);
+    if (!scene.empty()) h5::put_attr(file, "scene", scene);
+    H5::Group g = file.createGroup("/image");
+    std::vector<hsize_t> dims{hsize_t(image.height), hsize_t(image.width)};
+    if (image.channels > 1) dims.push_back(hsize_t(image.channels));
+    h5::put_dataset(g, "mean", dims, image.mean.data());
+    h5::put_dataset(g, "variance_of_mean", dims, image.variance_of_mean.data());
+  }
+  out.stage(memory.bytes());
+}
 
 void add_render_command(CLI::App& app) {
   auto o = std::make_shared<RenderOptions>();

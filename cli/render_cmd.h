@@ -63,4 +63,10 @@ scene::Settings render_pack_settings(const RenderOptions& o);
 
 void run_scene_render(const RenderOptions& o, const CLI::App& cmd);
 
+// The image as HDF5 (docs/formats.md, "Image"): /image/mean and /image/variance_of_mean, [H, W]
+// for one channel or [H, W, 3]; root attributes method, spp, seed, seconds, then `numbers` and,
+// where given, `scene` (the scene file's name).
+void write_image(AtomicOutput& out, const render::Image& image, const RenderOptions& o, const render::ImageSettings& s,
+                 const std::vector<std::pair<std::string, double>>& numbers, const std::string& scene = "");
+
 }  // namespace stf::cli

@@ -17,24 +17,6 @@ namespace stf::cli {
 
 namespace {
 
-void write_scene_image(AtomicOutput& out, const render::Image& image, const RenderOptions& o, const render::ImageSettings& s) {
-  H5::Exception::dontPrint();
-  h5::MemoryFile memory;
-  {
-    H5::H5File& file = memory.file();
-    h5::put_attr(file, "method", o.method);
-    h5::put_attr(file, "spp", s.spp);
-    h5::put_attr(file, "seed", std::int64_t(s.seed));
-    h5::put_attr(file, "seconds", image.seconds);
-    h5::put_attr(file, "scene", std::filesystem::path(o.scene).filename().string());
-    H5::Group g = file.createGroup("/image");
-    const std::vector<hsize_t> dims{hsize_t(image.height), hsize_t(image.width), 3};
-    h5::put_dataset(g, "mean", dims, image.mean.data());
-    h5::put_dataset(g, "variance_of_mean", dims, image.variance_of_mean.data());
-  }
-  out.stage(memory.bytes());
-}
-
 nlohmann::ordered_json rays_by_kind(const render::Image& image) {
   nlohmann::ordered_json j;
   for (int k = 0; k < render::kRayKinds; ++k) j[render::kRayKindNames[k]] = image.rays_by[k];
@@ -131,7 +113,7 @@ void run_scene_render(const RenderOptions& o, const CLI::App& cmd) {
   const render::Image image = render::render(sc, paths, s);
   bar.finish();
   stop_if_interrupted();
-  write_scene_image(outputs.image, image, o, s);
+  write_image(outputs.image, image, o, s, {}, std::filesystem::path(o.scene).filename().string());
   outputs.finish(image, o.exposure, scene_stats(image, build, *geometry, sc));
   if (!o.quiet)
     std::fprintf(stderr, "stf render: %s, %lld paths in %.3g s (%.3g collisions, %.3g strides per path%s%s), mean RGB %.4g %.4g %.4g -> %s\n",

@@ -155,8 +155,10 @@ SurfaceHit SceneGeometry::trace(const Vec3& origin, const Vec3& direction, doubl
   check_ray(origin, direction);
   SurfaceHit best;
   best.t = t_max;
-  const geometry::Hit h = boundary_->intersect(origin, direction, t_max);
-  if (h.found) best = {true, h.t, object_of_mesh_[std::size_t(h.object)], h.normal};
+  if (!object_of_mesh_.empty()) {  // no meshes (spheres only): no call into Embree at all
+    const geometry::Hit h = boundary_->intersect(origin, direction, t_max);
+    if (h.found) best = {true, h.t, object_of_mesh_[std::size_t(h.object)], h.normal};
+  }
   for (std::size_t i = 0; i < objects_.size(); ++i) {
     if (!objects_[i].sphere) continue;
     const double t = sphere_hit(origin, direction, objects_[i].centre, objects_[i].radius);

@@ -207,7 +207,7 @@ double ScenePaths::collision_gain_bound(const ChannelMedium& m, const Vec3& w) c
 }
 
 void ScenePaths::nee_at_collision(State& s, int c, double bound, PixelRng& rng, PathCounters& counters) const {
-  if (!next_event_ || ior_[std::size_t(s.inside)] != 1) return;  // behind a dielectric no shadow ray passes
+  if (ior_[std::size_t(s.inside)] != 1) return;  // behind a dielectric no shadow ray passes
   const ChannelMedium& m = medium(s.inside, c);
   const double most = m.transmittance_bound(bound), u = rng.uniform();  // no direction leaves sooner
   if (!may_cast(u, most) || u >= collision_gain_bound(m, s.w) * most / kShadowRoulette) return;
@@ -270,7 +270,7 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
   s.tight = false;
   if (s.bound - t >= refresh_below_[std::size_t(s.inside * 3 + c)]) s.bound -= t;
   else s.bound = 0, look_closer(s), ++counters.distance_queries;
-  nee_at_collision(s, c, s.bound, rng, counters);
+  if (next_event_) nee_at_collision(s, c, s.bound, rng, counters);
   const CosSin<double> cs = sample_hg(m.hg(), rng.uniform());
   s.exit.sampler = nullptr, s.scatter_medium = &m, s.scatter_cos = cs.cos_theta, s.after_nee = next_event_;
   s.w = around(s.w, cs.cos_theta, cs.sin_theta, rng.uniform());
