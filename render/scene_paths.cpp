@@ -235,7 +235,8 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
     s.bound = geometry_.free_radius(s.x, s.inside), ++counters.distance_queries;
     s.tight = geometry_.method() != FreeRadius::kGrid;  // an exact query leaves nothing closer
   }
-  if (const SphereLookup* spheres = this->spheres(s.inside, c)) {
+  const SphereLookup* spheres = this->spheres(s.inside, c);
+  if (spheres) {
     double r;
     bool by_medium = false;
     int k = fitting_sphere(s, m, *spheres, r, by_medium);
@@ -250,18 +251,28 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
       return true;
     }
   }
-  const double t = m.flight(s.x, s.w, rng, counters);
-  if (t >= s.bound && !s.tight) look_closer(s), ++counters.distance_queries;  // before a ray
-  if (t >= s.bound) {  // the flight may reach the boundary
-    const SurfaceHit h = geometry_.trace(s.x, s.w, t);
-    counters.count_ray(kFlightRay);
-    if (h.found) {
-      s.x += h.t * s.w, s.bound = -1;
-      cross(s, h, rng);
-      return true;
+  // Collision after collision until the path reaches the boundary, may stride, or ends: one call
+  // for the many collisions deep in a medium, the roulette the same draws as the outer loop's.
+  for (;;) {
+    const double t = m.flight(s.x, s.w, rng, counters);
+    if (t >= s.bound && !s.tight) look_closer(s), ++counters.distance_queries;  // before a ray
+    if (t >= s.bound) {  // the flight may reach the boundary
+      const SurfaceHit h = geometry_.trace(s.x, s.w, t);
+      counters.count_ray(kFlightRay);
+      if (h.found) {
+        s.x += h.t * s.w, s.bound = -1;
+        cross(s, h, rng);
+        return true;
+      }
+      if (!std::isfinite(t)) return false;  // a grid's flight past a boundary no ray found: lost in rounding
     }
-    if (!std::isfinite(t)) return false;  // a grid's flight past a boundary no ray found: lost in rounding
+    collide(s, c, m, t, rng, counters);
+    if (spheres) return true;  // the next step may stride
+    if (!survives_roulette(s.throughput, rng)) return false;
   }
+}
+
+void ScenePaths::collide(State& s, int c, const ChannelMedium& m, double t, PixelRng& rng, PathCounters& counters) const {
   s.x += t * s.w;
   ++counters.collisions;
   s.throughput *= m.albedo();
@@ -274,7 +285,6 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
   const CosSin<double> cs = sample_hg(m.hg(), rng.uniform());
   s.exit.sampler = nullptr, s.scatter_medium = &m, s.scatter_cos = cs.cos_theta, s.after_nee = next_event_;
   s.w = around(s.w, cs.cos_theta, cs.sin_theta, rng.uniform());
-  return true;
 }
 
 int ScenePaths::fitting_sphere(const State& s, const ChannelMedium& m, const SphereLookup& spheres, double& r,

@@ -112,6 +112,9 @@ class ScenePaths {
   bool ground_bounce(State& s, int c, const SurfaceHit& h, PixelRng& rng, PathCounters& counters) const;
   void cross(State& s, const SurfaceHit& h, PixelRng& rng) const;
   bool medium_step(State& s, int c, PixelRng& rng, PathCounters& counters) const;
+  // A real collision after a flight of t: the albedo, the free radius carried or refreshed, shadow
+  // rays, and a new direction from the phase function.
+  void collide(State& s, int c, const ChannelMedium& m, double t, PixelRng& rng, PathCounters& counters) const;
   // The largest sphere of `spheres` that fits at the path's point (its radius in r), or -1;
   // by_medium when the medium, not the free radius, limited it.
   int fitting_sphere(const State& s, const ChannelMedium& m, const SphereLookup& spheres, double& r, bool& by_medium) const;
