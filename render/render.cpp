@@ -66,12 +66,14 @@ Image render_pixels(const ImageSettings& s, int channels, Pixel pixel) {
 
 }  // namespace
 
+PinholeCamera::PinholeCamera(const scene::CameraSpec& cam, int width, int height)
+    : origin_(cam.position), forward_(normalize(cam.look_at - cam.position)), half_(std::tan(cam.fov * kPi / 360)),
+      width_(width), height_(height) {
+  right_ = normalize(cross(forward_, cam.up)), up_ = cross(right_, forward_);
+}
+
 Ray camera_ray(const scene::CameraSpec& cam, double px, double py, int width, int height) {
-  const Vec3 forward = normalize(cam.look_at - cam.position);
-  const Vec3 right = normalize(cross(forward, cam.up)), up = cross(right, forward);
-  const double half = std::tan(cam.fov * kPi / 360);
-  const double sx = (2 * px / width - 1) * half * width / height, sy = (1 - 2 * py / height) * half;
-  return {cam.position, normalize(forward + sx * right + sy * up)};
+  return PinholeCamera(cam, width, height).ray(px, py);
 }
 
 double Image::mean_radiance(int channel) const {
@@ -84,12 +86,13 @@ double Image::mean_radiance(int channel) const {
 
 Image render(const scene::RenderScene& scene, const ScenePaths& paths, const ImageSettings& s, Channels channels) {
   const int n = channels == Channels::kRgb ? 3 : 1;
+  const PinholeCamera camera(scene.camera, s.width, s.height);
   return render_pixels(s, n, [&](std::int64_t p, PixelRng& rng, PathCounters& counters, Running* sums) {
     const int px = int(p % s.width), py = int(p / s.width);
     for (std::int64_t k = 0; k < s.spp; ++k) {
       if (s.run.cancelled()) return false;
       const double jx = rng.uniform(), jy = rng.uniform();
-      const Ray ray = camera_ray(scene.camera, px + jx, py + jy, s.width, s.height);
+      const Ray ray = camera.ray(px + jx, py + jy);
       const int c = int(k % n);
       sums[c].add(paths.radiance(ray.origin, ray.direction, c, rng, counters));
     }

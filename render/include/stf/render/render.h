@@ -34,8 +34,24 @@ struct Image {
 struct Ray {
   Vec3 origin, direction;
 };
-// The camera ray through image position (px, py) in pixels (x right, y down, (0, 0) the top-left
-// corner) of a width x height image.
+// A pinhole camera's frame, built once per image: its rays through image positions.
+class PinholeCamera {
+ public:
+  PinholeCamera(const scene::CameraSpec& camera, int width, int height);
+  // The ray through image position (px, py) in pixels (x right, y down, (0, 0) the top-left corner).
+  Ray ray(double px, double py) const {
+    const double sx = (2 * px / width_ - 1) * half_ * width_ / height_, sy = (1 - 2 * py / height_) * half_;
+    return {origin_, normalize(forward_ + sx * right_ + sy * up_)};
+  }
+
+ private:
+  Vec3 origin_, forward_, right_, up_;
+  double half_;
+  int width_, height_;
+};
+
+// The camera ray through image position (px, py) of a width x height image (one ray; a render
+// builds its PinholeCamera once).
 Ray camera_ray(const scene::CameraSpec& camera, double px, double py, int width, int height);
 
 // How many channels an image carries: RGB (samples k, k + 3, ... of a pixel carry channel k), or
