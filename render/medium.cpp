@@ -18,8 +18,6 @@ ChannelMedium::ChannelMedium(double sigma_s, double sigma_a, double g, PlacedGri
   grid_ = std::move(placed.grid);
 }
 
-std::size_t ChannelMedium::grid_bytes() const { return grid_ ? grid_->bytes() : 0; }
-
 // The grid's frame is the scene's scaled by 1 / scale: a distance t there is t * scale here, and
 // sigma_t per grid unit is scale times sigma_t per scene unit.
 double ChannelMedium::grid_flight(const Vec3& x, const Vec3& w, PixelRng& rng, PathCounters& counters) const {

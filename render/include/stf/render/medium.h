@@ -76,8 +76,6 @@ class ChannelMedium {
   }
   // The most any segment of `length` transmits: exp(-smallest sigma_t length).
   double transmittance_bound(double length) const { return std::exp(-sigma_t_min_ * length); }
-  // The density grid's memory (0 where homogeneous).
-  std::size_t grid_bytes() const;
 
  private:
   double grid_flight(const Vec3& x, const Vec3& w, PixelRng& rng, PathCounters& counters) const;
