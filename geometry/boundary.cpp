@@ -129,11 +129,6 @@ Vec3 Boundary::spawn(const Vec3& point, const Vec3& n, const Vec3& direction) co
   return off_surface(point, n, direction, scale_);
 }
 
-Vec3 off_surface(const Vec3& point, const Vec3& n, const Vec3& direction, double scale) {
-  const double margin = 1e-5 * std::max(scale, std::max({std::abs(point.x), std::abs(point.y), std::abs(point.z)}));
-  return point + (dot(direction, n) >= 0 ? margin : -margin) * n;
-}
-
 double squared_distance_to_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
   // The nearest point by the Voronoi regions of the vertices, then edges, then the face.
   const Vec3 ab = b - a, ac = c - a, ap = p - a;

@@ -72,7 +72,7 @@ bool contains(const Bounds& b, const Vec3& p) {
 double sphere_hit(const Vec3& o, const Vec3& d, const Vec3& c, double r) {
   const Vec3 oc = o - c;
   const double b = dot(oc, d), q = dot(oc, oc) - r * r, disc = b * b - q;
-  if (disc < 0) return HUGE_VAL;
+  if (disc < 0 || (q > 0 && b > 0)) return HUGE_VAL;  // misses, or starts outside heading away
   const double root = std::sqrt(disc), near = -b - root, far = -b + root;
   return near > 0 ? near : (far > 0 ? far : HUGE_VAL);
 }
@@ -123,6 +123,7 @@ void SceneGeometry::place_objects(const scene::RenderScene& s) {
     Object obj;
     if (o.mesh.empty() && !o.box) {
       obj.sphere = true, obj.centre = o.translate, obj.radius = o.radius * o.scale, obj.inradius = obj.radius;
+      obj.inverse_radius = 1 / obj.radius;
       const Vec3 r{obj.radius, obj.radius, obj.radius};
       obj.bounds = {obj.centre - r, obj.centre + r};
     } else {
@@ -162,7 +163,7 @@ SurfaceHit SceneGeometry::trace(const Vec3& origin, const Vec3& direction, doubl
   for (std::size_t i = 0; i < objects_.size(); ++i) {
     if (!objects_[i].sphere) continue;
     const double t = sphere_hit(origin, direction, objects_[i].centre, objects_[i].radius);
-    if (t < best.t) best = {true, t, int(i), normalize(origin + t * direction - objects_[i].centre)};
+    if (t < best.t) best = sphere_surface(origin, direction, t, int(i));
   }
   if (ground_ && direction.y < 0) {
     const double t = (ground_height_ - origin.y) / direction.y;
@@ -174,6 +175,17 @@ SurfaceHit SceneGeometry::trace(const Vec3& origin, const Vec3& direction, doubl
   return best;
 }
 
+SurfaceHit SceneGeometry::leave_sphere(const Vec3& origin, const Vec3& direction, int object) const {
+  const Object& o = objects_[std::size_t(object)];
+  const double t = sphere_hit(origin, direction, o.centre, o.radius);
+  return t < HUGE_VAL ? sphere_surface(origin, direction, t, object) : SurfaceHit{};
+}
+
+SurfaceHit SceneGeometry::sphere_surface(const Vec3& origin, const Vec3& direction, double t, int object) const {
+  const Object& o = objects_[std::size_t(object)];
+  return {true, t, object, (origin + t * direction - o.centre) * o.inverse_radius};  // |p - c| = r: no square root
+}
+
 double SceneGeometry::free_radius(const Vec3& x, int object) const {
   const Object& o = objects_[std::size_t(object)];
   if (o.sphere) return std::max(0.0, o.radius - length(x - o.centre));
@@ -183,10 +195,6 @@ double SceneGeometry::free_radius(const Vec3& x, int object) const {
 double SceneGeometry::tight_free_radius(const Vec3& x, int object) const {
   const Object& o = objects_[std::size_t(object)];
   return o.grid && method_ == FreeRadius::kGrid ? o.grid->tight_lower_bound(x) : free_radius(x, object);
-}
-
-Vec3 SceneGeometry::spawn(const Vec3& point, const Vec3& n, const Vec3& direction) const {
-  return geometry::off_surface(point, n, direction, scale_);
 }
 
 std::size_t SceneGeometry::grid_bytes() const {

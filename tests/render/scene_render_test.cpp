@@ -160,6 +160,28 @@ g = 0.7
   }
 }
 
+// Inside an analytic sphere paths take their own steps (no free radius, no flight rays: its
+// surface is the only one inside it); in strides with shadow rays at collisions and exits they
+// draw the image the general loop draws through the icosphere of that radius.
+TEST_F(SceneRender, AnalyticSphereStridesAgreeWithTheIcosphere) {
+  const std::vector<PackEntry> pack = test_pack(STF_RENDER_PACK);
+  std::string sphere = kStridedScene;
+  const std::string mesh_line = sphere.substr(sphere.find("mesh = "), sphere.find('\n', sphere.find("mesh = ")) - sphere.find("mesh = "));
+  sphere.replace(sphere.find(mesh_line), mesh_line.size(), "shape = \"sphere\"\nradius = 0.5");
+  const render::Image analytic = draw_with(sphere, &pack, {}, 600, 11), mesh = draw_with(kStridedScene, &pack, {}, 600, 12);
+  EXPECT_GT(analytic.strides, analytic.paths / 4);
+  EXPECT_GT(analytic.rays_by[render::kShadowExit], 0);
+  EXPECT_GT(analytic.rays_by[render::kShadowCollision], 0);
+  const ImageComparison r =
+      compare_images(analytic.mean, analytic.variance_of_mean, mesh.mean, mesh.variance_of_mean, 24, 24, 3, 4);
+  EXPECT_GT(r.blocks, 80);
+  EXPECT_LT(r.max_block_z, 4.5);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_LT(std::abs(r.mean_z[std::size_t(c)]), 4.5) << c;
+    EXPECT_NEAR(r.mean_ratio[std::size_t(c)], 1, 0.01) << c;
+  }
+}
+
 // A pack with no sphere of the scene's media leaves the strided paths brute force's, draw for
 // draw: the same image to the bit.
 TEST_F(SceneRender, StridesWithoutSpheresAreBruteForceBitForBit) {

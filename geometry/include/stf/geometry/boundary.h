@@ -4,6 +4,8 @@
 // mesh k. Const and thread-safe once made.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <memory>
 #include <vector>
 
@@ -52,8 +54,12 @@ class Boundary {
 
 // A point just off the surface at `point` (normal n) on the side `direction` heads for, by
 // 1e-5 of the larger of the scene's size `scale` and the point's coordinates: above Embree's
-// float rounding, so that a ray from there does not find the same surface again.
-Vec3 off_surface(const Vec3& point, const Vec3& n, const Vec3& direction, double scale);
+// float rounding, so that a ray from there does not find the same surface again. Inline: every
+// crossing of a surface takes one.
+inline Vec3 off_surface(const Vec3& point, const Vec3& n, const Vec3& direction, double scale) {
+  const double margin = 1e-5 * std::max(scale, std::max({std::abs(point.x), std::abs(point.y), std::abs(point.z)}));
+  return point + (dot(direction, n) >= 0 ? margin : -margin) * n;
+}
 
 // The squared distance from p to the triangle (a, b, c).
 double squared_distance_to_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);

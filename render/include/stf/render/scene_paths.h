@@ -52,6 +52,8 @@ struct PathOptions {
   double density_tolerance = kDensityTolerance;
 };
 
+struct PathState;  // a path on its way (path_state.h)
+
 class ScenePaths {
  public:
   // Brute force without `pack`; strides through the pack's spheres of each channel's albedo and
@@ -69,7 +71,7 @@ class ScenePaths {
   const SphereLookup* spheres(int object, int channel) const;
 
  private:
-  struct State;
+  using State = PathState;
   double escape(const State& s, int c) const;
   // A direction toward a uniform point of the sun's disc (density sun_pdf_ per sr).
   Vec3 toward_sun(PixelRng& rng) const;
@@ -115,6 +117,25 @@ class ScenePaths {
   // A real collision after a flight of t: the albedo, the free radius carried or refreshed, shadow
   // rays, and a new direction from the phase function.
   void collide(State& s, int c, const ChannelMedium& m, double t, PixelRng& rng, PathCounters& counters) const;
+  // A new direction from the phase function at a collision.
+  void scatter(State& s, const ChannelMedium& m, PixelRng& rng) const;
+  // Inside an analytic sphere of homogeneous medium nothing else lies (SceneGeometry::sphere):
+  // a flight leaves where its end lies outside, and a pack's sphere of radius r fits about x
+  // where |x - centre|^2 <= (R - r)^2. Its steps need no free radius and cast no flight ray.
+  struct SphereRoom {
+    Vec3 centre;
+    double radius = 0, radius2 = 0;  // radius 0: the object is not such a sphere
+    std::vector<double> limit2, stride_radius;  // per sphere of the lookup, limit2 descending
+    // The largest sphere of the lookup that fits at squared distance d2 from the centre, or -1.
+    int fitting(double d2) const {
+      int k = -1;
+      for (double limit : limit2) k += d2 <= limit;  // the fitting ones are a prefix: no branch
+      return k;
+    }
+  };
+  // What a path needs inside an analytic sphere of homogeneous medium (else a room of radius 0).
+  static SphereRoom sphere_room(const SceneGeometry::Ball& ball, const ChannelMedium& m, const SphereLookup* spheres);
+  bool sphere_step(State& s, int c, const SphereRoom& room, PixelRng& rng, PathCounters& counters) const;
   // The largest sphere of `spheres` that fits at the path's point (its radius in r), or -1;
   // by_medium when the medium, not the free radius, limited it.
   int fitting_sphere(const State& s, const ChannelMedium& m, const SphereLookup& spheres, double& r, bool& by_medium) const;
@@ -132,6 +153,7 @@ class ScenePaths {
   // depth below which shadow rays start to count (ln(0.5 / kShadowRoulette) / sigma_t).
   std::vector<double> refresh_below_;
   std::vector<std::shared_ptr<SphereLookup>> lookups_;  // [objects * 3], null where none
+  std::vector<SphereRoom> rooms_;               // [objects * 3]
   std::vector<double> ior_;                     // per object
   std::shared_ptr<const EnvironmentMap> environment_;  // in place of the sky, or null
   Vec3 sun_;
