@@ -88,10 +88,6 @@ ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geo
 
 ScenePaths::~ScenePaths() = default;
 
-const SphereLookup* ScenePaths::spheres(int object, int channel) const {
-  return lookups_[std::size_t(object * 3 + channel)].get();
-}
-
 double ScenePaths::radiance(const Vec3& origin, const Vec3& direction, int c, PixelRng& rng, PathCounters& counters) const {
   State s;
   s.x = origin, s.w = direction;

@@ -68,7 +68,7 @@ class ScenePaths {
   // What a path in `object` sees in `channel`: homogeneous, or the object's density grid.
   const ChannelMedium& medium(int object, int channel) const { return media_[std::size_t(object * 3 + channel)]; }
   // The spheres a path in `object` strides through in `channel` (null: none).
-  const SphereLookup* spheres(int object, int channel) const;
+  const SphereLookup* spheres(int object, int channel) const { return lookups_[std::size_t(object * 3 + channel)].get(); }
 
  private:
   using State = PathState;
