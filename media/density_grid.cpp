@@ -113,6 +113,10 @@ DensityGrid::DensityGrid(Lattice&& lattice) {
     throw grid_error(lattice.source, "the grid's index-to-world map is singular or not finite");
   if (std::none_of(lattice.values.begin(), lattice.values.end(), [](float v) { return v > 0; }))
     throw grid_error(lattice.source, "the grid holds no non-zero density");
+  for (std::size_t a = 0; a < 3; ++a) {
+    const auto& row = to_lattice_[a];
+    lattice_reach_[a] = std::sqrt(row[0] * row[0] + row[1] * row[1] + row[2] * row[2]);
+  }
   dims_ = lattice.dims;
   values_ = std::move(lattice.values);
   to_world_ = lattice.to_world;

@@ -1,5 +1,7 @@
 #include "stf/render/medium.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "stf/media/tracking.h"
@@ -16,6 +18,8 @@ ChannelMedium::ChannelMedium(double sigma_s, double sigma_a, double g, PlacedGri
   sigma_t_max_ = sigma_t_unit_ * placed.grid->max_density(), sigma_t_min_ = 0;  // outside the support the density is 0
   inv_sigma_t_ = 1 / sigma_t_max_;
   grid_ = std::move(placed.grid);
+  rooms_ = placed.rooms;
+  if (tolerance_ >= 0 && !rooms_) rooms_ = std::make_shared<const media::StrideRooms>(stride_rooms(*grid_, tolerance_));
 }
 
 // The grid's frame is the scene's scaled by 1 / scale: a distance t there is t * scale here, and
@@ -36,17 +40,28 @@ double ChannelMedium::grid_transmittance(const Vec3& x, const Vec3& w, double le
 StrideBall ChannelMedium::grid_stride_ball(const Vec3& x, double free_radius, double smallest_tau,
                                            double largest_tau) const {
   if (tolerance_ < 0) return {0, 0, true};
-  const Vec3 u = (x - translate_) / scale_;
-  // Every ball holds x's brick: where it varies too much, none may be taken (asked first: most
-  // collisions in a varying grid end here).
-  if (!within_tolerance(grid_->range_over_ball(u, 0))) return {0, 0, true};
-  const double sigma_t = sigma_t_unit_ * grid_->density(u);
+  const Vec3 u = grid_->to_lattice((x - translate_) / scale_);
+  const double l[3] = {u.x, u.y, u.z};
+  int b[3];
+  for (std::size_t a = 0; a < 3; ++a) {
+    b[a] = int(std::floor((l[a] + 1) / media::StrideRooms::kBlock));
+    if (!(b[a] >= 0 && b[a] < rooms_->counts[a])) return {0, 0, true};  // NaN too
+  }
+  // The cube of blocks within k of x's keeps the tolerance (k < 0: not even x's block, as where
+  // the density varies most): the ball may reach its nearest face along every lattice axis,
+  // where its extent is its radius times the axis's reach.
+  const int k = rooms_->at(b[0], b[1], b[2]);
+  if (k < 0) return {0, 0, true};
+  double room = HUGE_VAL;
+  for (int a = 0; a < 3; ++a) {
+    const double lower = media::StrideRooms::block_lower(b[a] - k), upper = media::StrideRooms::block_lower(b[a] + k + 1);
+    room = std::min(room, std::min(l[a] - lower, upper - l[a]) / grid_->lattice_reach(a));
+  }
+  const double sigma_t = sigma_t_unit_ * grid_->lattice_density(u);
   // No sphere of the ladder is larger than largest_tau at the ball's least density.
-  double r = std::min(free_radius, largest_tau * (1 + tolerance_) / sigma_t);
-  bool shrunk = r < free_radius;
-  for (; sigma_t * r >= smallest_tau; r *= 0.5, shrunk = true)
-    if (within_tolerance(grid_->range_over_ball(u, r / scale_))) return {r, sigma_t, shrunk};
-  return {0, 0, shrunk};
+  const double r = std::min({free_radius, room * scale_, largest_tau * (1 + tolerance_) / sigma_t});
+  if (!(sigma_t * r >= smallest_tau)) return {0, 0, r < free_radius};
+  return {r, sigma_t, r < free_radius};
 }
 
 }  // namespace stf::render

@@ -60,10 +60,10 @@ ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geo
   for (const scene::ObjectSpec& o : scene.objects) {
     ior_.push_back(o.ior);
     const scene::MediumSpec& spec = scene.media[std::size_t(o.medium)];
+    const PlacedGrid placed = place_grid(spec, o, pack ? options.density_tolerance : -1.0);
     for (std::size_t c = 0; c < 3; ++c) {
       const double ss = spec.sigma_s[c], sa = spec.sigma_a[c], g = spec.g[c];
-      const ChannelMedium m = spec.grid ? ChannelMedium(ss, sa, g, {spec.grid, o.scale, o.translate, options.density_tolerance})
-                                        : ChannelMedium(ss, sa, g);
+      const ChannelMedium m = spec.grid ? ChannelMedium(ss, sa, g, placed) : ChannelMedium(ss, sa, g);
       std::shared_ptr<SphereLookup> lookup;
       const auto same = std::find_if(built.begin(), built.end(), [&](const auto& b) { return b.first == std::pair(m.albedo(), g); });
       if (same != built.end()) {
@@ -87,6 +87,16 @@ ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geo
 }
 
 ScenePaths::~ScenePaths() = default;
+
+PlacedGrid ScenePaths::place_grid(const scene::MediumSpec& spec, const scene::ObjectSpec& o, double tolerance) {
+  PlacedGrid placed{spec.grid, o.scale, o.translate, tolerance, nullptr};
+  if (!spec.grid || tolerance < 0) return placed;
+  for (const PlacedGrid& p : placed_)
+    if (p.grid == spec.grid && p.tolerance == tolerance) placed.rooms = p.rooms;  // its channels and objects share them
+  if (!placed.rooms) placed.rooms = std::make_shared<const media::StrideRooms>(media::stride_rooms(*spec.grid, tolerance));
+  placed_.push_back(placed);
+  return placed;
+}
 
 double ScenePaths::radiance(const Vec3& origin, const Vec3& direction, int c, PixelRng& rng, PathCounters& counters) const {
   State s;

@@ -20,6 +20,7 @@
 
 #include "chi2.h"
 #include "stf/media/density_grid.h"
+#include "stf/media/stride_rooms.h"
 #include "stf/media/tracking.h"
 
 namespace {
@@ -31,6 +32,8 @@ using stf::length;
 using stf::normalize;
 using stf::media::Box;
 using stf::media::DensityGrid;
+using stf::media::StrideRooms;
+using stf::media::stride_rooms;
 
 std::uint64_t test_seed() {
   const char* given = std::getenv("STF_TEST_SEED");
@@ -375,37 +378,66 @@ void expect_bricks_bound_the_field(const DensityGrid& grid, std::mt19937_64& rng
   ::testing::Test::RecordProperty("empty_bricks", empty);
 }
 
-// Random points of random balls lie within the ball's range.
-void expect_ball_ranges_bound_the_field(const DensityGrid& grid, std::mt19937_64& rng) {
-  const Box s = grid.support();
-  const Vec3 size = s.upper - s.lower;
-  std::uniform_real_distribution<double> unit(0, 1), cube(-1, 1);
-  for (int ball = 0; ball < 300; ++ball) {
-    const Vec3 centre = s.lower + Vec3{size.x * (1.4 * unit(rng) - 0.2), size.y * (1.4 * unit(rng) - 0.2), size.z * (1.4 * unit(rng) - 0.2)};
-    const double radius = 0.1 * length(size) * unit(rng) * unit(rng);
-    const auto [least, most] = grid.range_over_ball(centre, radius);
-    for (int n = 0; n < 100; ++n) {
-      Vec3 p{cube(rng), cube(rng), cube(rng)};
-      if (dot(p, p) > 1) continue;
-      const double v = grid.density(centre + p * radius);
-      ASSERT_GE(v, least - slack(v)) << "ball " << ball;
-      ASSERT_LE(v, most + slack(v)) << "ball " << ball;
+// A block's room, against the cube of blocks about it read directly: the largest k whose cube
+// (inside the grid) keeps the tolerance, -1 where not even the block does; and random points of
+// that cube's region hold densities within the cube's range, so within the tolerance.
+void expect_rooms_are_their_cubes(const DensityGrid& grid, double tolerance, std::mt19937_64& rng) {
+  std::array<int, 3> n{};
+  const std::vector<DensityGrid::Brick> blocks = grid.block_ranges(StrideRooms::kBlock, n);
+  const StrideRooms rooms = stride_rooms(grid, tolerance);
+  ASSERT_EQ(rooms.counts, n);
+  const auto cube = [&](int x, int y, int z, int k) {
+    DensityGrid::Brick r{INFINITY, 0};
+    for (int i = x - k; i <= x + k; ++i)
+      for (int j = y - k; j <= y + k; ++j)
+        for (int l = z - k; l <= z + k; ++l) {
+          const bool inside = i >= 0 && j >= 0 && l >= 0 && i < n[0] && j < n[1] && l < n[2];
+          const DensityGrid::Brick b = inside ? blocks[(std::size_t(i) * std::size_t(n[1]) + std::size_t(j)) * std::size_t(n[2]) + std::size_t(l)] : DensityGrid::Brick{};
+          r.min = std::min(r.min, b.min), r.max = std::max(r.max, b.max);
+        }
+    return r;
+  };
+  const auto keeps = [&](const DensityGrid::Brick& r) { return r.min > 0 && r.max <= (1 + tolerance) * r.min; };
+  std::uniform_int_distribution<int> bx(0, n[0] - 1), by(0, n[1] - 1), bz(0, n[2] - 1);
+  std::uniform_real_distribution<double> unit(0, 1);
+  int kept = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const int x = bx(rng), y = by(rng), z = bz(rng), k = rooms.at(x, y, z);
+    if (k < 0) {
+      EXPECT_FALSE(keeps(cube(x, y, z, 0))) << x << " " << y << " " << z;
+      continue;
+    }
+    ++kept;
+    const DensityGrid::Brick r = cube(x, y, z, k);
+    ASSERT_TRUE(keeps(r)) << x << " " << y << " " << z << " room " << k;
+    EXPECT_FALSE(keeps(cube(x, y, z, k + 1))) << x << " " << y << " " << z << " room " << k;
+    for (int m = 0; m < 40; ++m) {
+      const double side = (2 * k + 1) * StrideRooms::kBlock;
+      const Vec3 u{StrideRooms::block_lower(x - k) + side * unit(rng), StrideRooms::block_lower(y - k) + side * unit(rng),
+                   StrideRooms::block_lower(z - k) + side * unit(rng)};
+      const double v = grid.lattice_density(u);
+      ASSERT_GE(v, r.min - slack(v));
+      ASSERT_LE(v, r.max + slack(v));
     }
   }
+  ::testing::Test::RecordProperty("kept_" + std::to_string(tolerance), kept);
 }
 
-TEST_F(Media, BricksAndBallRangesBoundTheField) {
+TEST_F(Media, BricksAndStrideRoomsBoundTheField) {
   std::mt19937_64 rng(test_seed());
   SCOPED_TRACE("STF_TEST_SEED=" + std::to_string(test_seed()));
   const DensityGrid cloud = cloud_grid(), affine = affine_vdb(file("g.vdb"));
   for (const DensityGrid* grid : {&cloud, &affine}) {
     expect_bricks_bound_the_field(*grid, rng);
-    expect_ball_ranges_bound_the_field(*grid, rng);
+    for (double tolerance : {0.0, 0.3, 1.0}) expect_rooms_are_their_cubes(*grid, tolerance, rng);
   }
-  // Tight where the field allows: a ball within the empty slab, a ball in a constant grid.
-  EXPECT_EQ(cloud.range_over_ball({1.5, 1, 1.25}, 0.3), std::make_pair(0.0, 0.0));
+  // A constant grid keeps any tolerance up to the blocks that reach its zero padding: the room
+  // of its centre block is the distance to them.
   const DensityGrid constant = DensityGrid::from_values(std::vector<float>(32 * 32 * 32, 2.5f), 32, 32, 32, {{0, 0, 0}, {1, 1, 1}});
-  EXPECT_EQ(constant.range_over_ball({0.5, 0.5, 0.5}, 0.1), std::make_pair(2.5, 2.5));
+  const StrideRooms rooms = stride_rooms(constant, 0);
+  EXPECT_EQ(rooms.counts, (std::array<int, 3>{17, 17, 17}));
+  EXPECT_EQ(rooms.at(8, 8, 8), 7);
+  EXPECT_EQ(rooms.at(0, 8, 8), -1);
   EXPECT_EQ(constant.bytes(), 32u * 32 * 32 * 4 + 5 * 5 * 5 * 8);
 }
 

@@ -206,7 +206,7 @@ TEST(GridStrides, ABallNeverHoldsADensityOutsideItsTolerance) {
   auto grid = std::make_shared<const media::DensityGrid>(media::DensityGrid::from_values(cored(), 128, 128, 128, kCube));
   render::PixelRng rng(5, 0);
   for (double tolerance : {0.0, 0.1, 0.3}) {
-    const render::ChannelMedium m(7.92, 0.08, 0.5, {grid, 1.3, {0.2, -0.1, 0.4}, tolerance});
+    const render::ChannelMedium m(7.92, 0.08, 0.5, {grid, 1.3, {0.2, -0.1, 0.4}, tolerance, nullptr});
     int balls = 0;
     for (int trial = 0; trial < 3000; ++trial) {
       const Vec3 x = Vec3{0.2, -0.1, 0.4} + 1.3 * Vec3{2 * rng.uniform() - 1, 2 * rng.uniform() - 1, 2 * rng.uniform() - 1};
@@ -236,7 +236,7 @@ TEST(GridStrides, AStrideInAConstantGridIsTheHomogeneousStride) {
   // the zero padding).
   auto grid = std::make_shared<const media::DensityGrid>(
       media::DensityGrid::from_values(std::vector<float>(32 * 32 * 32, 2.5f), 32, 32, 32, {{-2, -2, -2}, {2, 2, 2}}));
-  const render::ChannelMedium homogeneous(2.5 * 7.92, 2.5 * 0.08, 0.5), in_grid(7.92, 0.08, 0.5, {grid, 1, {}, 0});
+  const render::ChannelMedium homogeneous(2.5 * 7.92, 2.5 * 0.08, 0.5), in_grid(7.92, 0.08, 0.5, {grid, 1, {}, 0, nullptr});
   for (const Vec3& x : {Vec3{0, 0, 0}, Vec3{0.3, -0.2, 0.1}, Vec3{-0.25, 0.25, 0}})
     for (double free_radius : {0.05, 0.2, 0.4}) {
       const render::StrideBall a = homogeneous.stride_ball(x, free_radius, 1, 64), b = in_grid.stride_ball(x, free_radius, 1, 64);

@@ -56,9 +56,6 @@ class DensityGrid {
   double min_density() const { return min_density_; }
   // Memory held: values and bricks.
   std::size_t bytes() const;
-  // A density range over the ball (centre, radius) of the grid's frame, never narrower than the
-  // field's: the bricks the ball's lattice box overlaps, and 0 where it reaches past them.
-  std::pair<double, double> range_over_ball(const Vec3& centre, double radius) const;
 
   // The lattice, where tracking walks: lattice point (i, j, k) holds value [i, j, k], at lattice
   // coordinates (i, j, k). The map is affine, so a ray's parameter is the same distance in both.
@@ -83,6 +80,12 @@ class DensityGrid {
                    std::size_t(bz)];
   }
   static double brick_lower(int b) { return double(b) * kBrick - 1.0; }
+  // The lattice extent, along lattice axis a, of a unit length of the grid's frame (row a of the
+  // world-to-lattice matrix): a ball of radius r spans r times this about its centre.
+  double lattice_reach(int a) const { return lattice_reach_[std::size_t(a)]; }
+  // The ranges of blocks of `edge`^3 cells, by the bricks' rule (block b along an axis covers
+  // lattice coordinates [b edge - 1, (b + 1) edge - 1]), in brick() order for their counts.
+  std::vector<Brick> block_ranges(int edge, std::array<int, 3>& counts) const;
 
  private:
   explicit DensityGrid(Lattice&& lattice);
@@ -95,6 +98,7 @@ class DensityGrid {
   std::vector<float> values_;
   std::array<std::array<double, 4>, 3> to_world_{};    // x = A u + t: columns 0-2 are A, 3 is t
   std::array<std::array<double, 4>, 3> to_lattice_{};  // its inverse
+  std::array<double, 3> lattice_reach_{};              // the lattice extent per unit of the grid's frame, per axis
   Box clip_{};                                         // lattice coordinates
   Box lattice_support_{};
   double max_density_ = 0, min_density_ = 0;

@@ -16,6 +16,7 @@
 
 #include "stf/hg.h"
 #include "stf/media/density_grid.h"
+#include "stf/media/stride_rooms.h"
 #include "stf/render/path_counters.h"
 #include "stf/render/pixel_rng.h"
 #include "stf/vec3.h"
@@ -37,6 +38,9 @@ struct PlacedGrid {
   double scale = 1;
   Vec3 translate;
   double tolerance = -1;
+  // The grid's stride rooms at that tolerance, where already built (media of one grid share
+  // them); built by the medium where null.
+  std::shared_ptr<const media::StrideRooms> rooms;
 };
 
 class ChannelMedium {
@@ -67,9 +71,9 @@ class ChannelMedium {
   }
   // The largest ball about x, within `free_radius` of it, that a sphere of the ladder from
   // `smallest_tau` to `largest_tau` may stand for: homogeneous, the free radius at sigma_t; a grid,
-  // the free radius (or the largest sphere's at the density at x) halved until the density over
-  // the ball, from the majorant bricks, stays within the tolerance, at the density at x (the
-  // ball's mean where the field is linear across it).
+  // the free radius (or the largest sphere's at the density at x) cut to the cube of blocks
+  // about x's whose densities stay within the tolerance (media::StrideRooms), at the density at
+  // x (the ball's mean where the field is linear across it).
   StrideBall stride_ball(const Vec3& x, double free_radius, double smallest_tau, double largest_tau) const {
     if (!grid_) return {free_radius, sigma_t_max_};
     return grid_stride_ball(x, free_radius, smallest_tau, largest_tau);
@@ -92,6 +96,7 @@ class ChannelMedium {
   double sigma_t_unit_ = 0, scale_ = 1;  // the grid's sigma_t per unit density; its placement
   double tolerance_ = -1;
   Vec3 translate_;
+  std::shared_ptr<const media::StrideRooms> rooms_;
 };
 
 }  // namespace stf::render

@@ -145,6 +145,11 @@ class ScenePaths {
   void ideal_stride(State& s, const ChannelMedium& m, double r, PixelRng& rng, PathCounters& counters) const;
   bool outside_step(State& s, int c, PixelRng& rng, PathCounters& counters) const;
 
+  // An object's grid (if its medium has one) placed, with its stride rooms at `tolerance` built
+  // once per grid (none below 0: brute force asks for none).
+  PlacedGrid place_grid(const scene::MediumSpec& spec, const scene::ObjectSpec& o, double tolerance);
+  std::vector<PlacedGrid> placed_;  // the grids placed, each with its rooms
+
   const scene::RenderScene& scene_;
   const SceneGeometry& geometry_;
   std::vector<ChannelMedium> media_;            // [objects * 3]
