@@ -176,30 +176,37 @@ void ScenePaths::collide(State& s, int c, const ChannelMedium& m, double t, Pixe
 bool ScenePaths::sphere_step(State& s, int c, const SphereRoom& room, PixelRng& rng, PathCounters& counters) const {
   const ChannelMedium& m = medium(s.inside, c);
   const SphereLookup* spheres = this->spheres(s.inside, c);
+  // The point from the centre and the direction stay in registers; the state takes them where a
+  // call reads it (a stride, shadow rays, the way out).
+  Vec3 o = s.x - room.centre, w = s.w;
   for (;;) {
-    const Vec3 o = s.x - room.centre;
     const int k = spheres ? room.fitting(dot(o, o)) : -1;
     if (k >= 0) {
+      s.x = room.centre + o, s.w = w;
       stride(s, c, spheres->sampler(k), room.stride_radius[std::size_t(k)], rng, counters);
       if (!survives_roulette(s.throughput, rng)) return false;
+      o = s.x - room.centre, w = s.w;
       continue;
     }
-    const double t = m.flight(s.x, s.w, rng, counters);
-    const Vec3 y = o + t * s.w;
+    const double t = m.homogeneous_flight(rng);
+    const Vec3 y = o + t * w;
     if (dot(y, y) > room.radius2) {  // the flight leaves: where, exactly
-      const SurfaceHit h = geometry_.leave_sphere(s.x, s.w, s.inside);
+      s.x = room.centre + o, s.w = w;
+      const SurfaceHit h = geometry_.leave_sphere(s.x, w, s.inside);
       counters.count_ray(kFlightRay);
       if (h.found) {
-        s.x += h.t * s.w, s.bound = -1;
+        s.x += h.t * w, s.bound = -1;
         cross(s, h, rng);
         return true;
       }
     }
-    s.x = room.centre + y;
+    o = y;
     ++counters.collisions;
     s.throughput *= m.albedo();
-    if (next_event_) s.bound = room.radius - length(y), nee_at_collision(s, c, s.bound, rng, counters);
-    scatter(s, m, rng);
+    if (next_event_) s.x = room.centre + o, s.w = w, s.bound = room.radius - length(o), nee_at_collision(s, c, s.bound, rng, counters);
+    const CosSin<double> cs = sample_hg(m.hg(), rng.uniform());
+    s.exit.sampler = nullptr, s.scatter_medium = &m, s.scatter_cos = cs.cos_theta, s.after_nee = next_event_;
+    w = around(w, cs.cos_theta, cs.sin_theta, rng.uniform());
     if (!survives_roulette(s.throughput, rng)) return false;
   }
 }

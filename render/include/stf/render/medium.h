@@ -61,9 +61,11 @@ class ChannelMedium {
   // The distance along w (unit) from x to the flight's real collision: HUGE_VAL where the medium
   // ends first (the caller checks the boundary before it). Null collisions are counted.
   double flight(const Vec3& x, const Vec3& w, PixelRng& rng, PathCounters& counters) const {
-    if (!grid_) return -std::log(rng.uniform_open0()) * inv_sigma_t_;
+    if (!grid_) return homogeneous_flight(rng);
     return grid_flight(x, w, rng, counters);
   }
+  // A homogeneous medium's flight: exponential at sigma_t.
+  double homogeneous_flight(PixelRng& rng) const { return -std::log(rng.uniform_open0()) * inv_sigma_t_; }
   // The transmittance from x to x + length w (an unbiased estimate where the medium varies).
   double transmittance(const Vec3& x, const Vec3& w, double length, PixelRng& rng) const {
     if (!grid_) return std::exp(-sigma_t_max_ * length);
