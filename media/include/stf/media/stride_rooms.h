@@ -1,7 +1,8 @@
 // Where a stride may go in a density grid at a relative tolerance: per block of kBlock^3 cells,
 // how far about it the density keeps max <= (1 + tolerance) min (min > 0). Built once per grid
-// and tolerance; a stride's ball is then found with one load (render/medium.h), where a search
-// over the majorant's bricks read up to hundreds per collision and saw only 8^3-cell detail.
+// and tolerance, so that a stride's ball is one load (render/medium.h): a search over the
+// majorant's bricks a ball overlaps reads up to hundreds at every collision, and 8^3-cell bricks
+// are too coarse for the detail strides meet (docs/studies/2026-12-media-that-vary.md).
 #pragma once
 
 #include <array>
