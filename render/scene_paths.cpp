@@ -17,7 +17,6 @@ constexpr int kMaxEvents = 1 << 24;
 
 }  // namespace
 
-
 ScenePaths::SphereRoom ScenePaths::sphere_room(const SceneGeometry::Ball& ball, const ChannelMedium& m, const SphereLookup* spheres) {
   ScenePaths::SphereRoom room;
   if (ball.radius <= 0 || !m.homogeneous()) return room;
@@ -57,10 +56,11 @@ ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geo
   // Channels (of any object) of one albedo and g stride through the same spheres: one lookup
   // for them all, whose samplers are built once.
   std::vector<std::pair<std::pair<double, double>, std::shared_ptr<SphereLookup>>> built;
+  std::vector<PlacedGrid> grids;  // placed so far: objects of one grid share its stride rooms
   for (const scene::ObjectSpec& o : scene.objects) {
     ior_.push_back(o.ior);
     const scene::MediumSpec& spec = scene.media[std::size_t(o.medium)];
-    const PlacedGrid placed = place_grid(spec, o, pack ? options.density_tolerance : -1.0);
+    const PlacedGrid placed = place_grid(spec, o, pack ? options.density_tolerance : -1.0, grids);
     for (std::size_t c = 0; c < 3; ++c) {
       const double ss = spec.sigma_s[c], sa = spec.sigma_a[c], g = spec.g[c];
       const ChannelMedium m = spec.grid ? ChannelMedium(ss, sa, g, placed) : ChannelMedium(ss, sa, g);
@@ -88,13 +88,14 @@ ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geo
 
 ScenePaths::~ScenePaths() = default;
 
-PlacedGrid ScenePaths::place_grid(const scene::MediumSpec& spec, const scene::ObjectSpec& o, double tolerance) {
+PlacedGrid ScenePaths::place_grid(const scene::MediumSpec& spec, const scene::ObjectSpec& o, double tolerance,
+                                  std::vector<PlacedGrid>& placed_before) {
   PlacedGrid placed{spec.grid, o.scale, o.translate, tolerance, nullptr};
   if (!spec.grid || tolerance < 0) return placed;
-  for (const PlacedGrid& p : placed_)
-    if (p.grid == spec.grid && p.tolerance == tolerance) placed.rooms = p.rooms;  // its channels and objects share them
+  for (const PlacedGrid& p : placed_before)
+    if (p.grid == spec.grid) placed.rooms = p.rooms;
   if (!placed.rooms) placed.rooms = std::make_shared<const media::StrideRooms>(media::stride_rooms(*spec.grid, tolerance));
-  placed_.push_back(placed);
+  placed_before.push_back(placed);
   return placed;
 }
 
@@ -154,10 +155,10 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
 }
 
 // Inlined into both collision loops: a call costs them their registers.
-[[gnu::always_inline]] inline void ScenePaths::scatter(State& s, const ChannelMedium& m, PixelRng& rng) const {
+[[gnu::always_inline]] inline Vec3 ScenePaths::scatter(State& s, const ChannelMedium& m, const Vec3& w, PixelRng& rng) const {
   const CosSin<double> cs = sample_hg(m.hg(), rng.uniform());
   s.exit.sampler = nullptr, s.scatter_medium = &m, s.scatter_cos = cs.cos_theta, s.after_nee = next_event_;
-  s.w = around(s.w, cs.cos_theta, cs.sin_theta, rng.uniform());
+  return around(w, cs.cos_theta, cs.sin_theta, rng.uniform());
 }
 
 void ScenePaths::collide(State& s, int c, const ChannelMedium& m, double t, PixelRng& rng, PathCounters& counters) const {
@@ -170,7 +171,7 @@ void ScenePaths::collide(State& s, int c, const ChannelMedium& m, double t, Pixe
   if (s.bound - t >= refresh_below_[std::size_t(s.inside * 3 + c)]) s.bound -= t;
   else s.bound = 0, look_closer(s), ++counters.distance_queries;
   if (next_event_) nee_at_collision(s, c, s.bound, rng, counters);
-  scatter(s, m, rng);
+  s.w = scatter(s, m, s.w, rng);
 }
 
 bool ScenePaths::sphere_step(State& s, int c, const SphereRoom& room, PixelRng& rng, PathCounters& counters) const {
@@ -183,7 +184,8 @@ bool ScenePaths::sphere_step(State& s, int c, const SphereRoom& room, PixelRng& 
     const int k = spheres ? room.fitting(dot(o, o)) : -1;
     if (k >= 0) {
       s.x = room.centre + o, s.w = w;
-      stride(s, c, spheres->sampler(k), room.stride_radius[std::size_t(k)], rng, counters);
+      if (ideal_strides_) ideal_stride(s, m, room.stride_radius[std::size_t(k)], rng, counters);
+      else stride(s, c, spheres->sampler(k), room.stride_radius[std::size_t(k)], rng, counters);
       if (!survives_roulette(s.throughput, rng)) return false;
       o = s.x - room.centre, w = s.w;
       continue;
@@ -204,9 +206,7 @@ bool ScenePaths::sphere_step(State& s, int c, const SphereRoom& room, PixelRng& 
     ++counters.collisions;
     s.throughput *= m.albedo();
     if (next_event_) s.x = room.centre + o, s.w = w, s.bound = room.radius - length(o), nee_at_collision(s, c, s.bound, rng, counters);
-    const CosSin<double> cs = sample_hg(m.hg(), rng.uniform());
-    s.exit.sampler = nullptr, s.scatter_medium = &m, s.scatter_cos = cs.cos_theta, s.after_nee = next_event_;
-    w = around(w, cs.cos_theta, cs.sin_theta, rng.uniform());
+    w = scatter(s, m, w, rng);
     if (!survives_roulette(s.throughput, rng)) return false;
   }
 }

@@ -169,6 +169,12 @@ TEST_F(SceneRender, AnalyticSphereStridesAgreeWithTheIcosphere) {
   const std::string mesh_line = sphere.substr(sphere.find("mesh = "), sphere.find('\n', sphere.find("mesh = ")) - sphere.find("mesh = "));
   sphere.replace(sphere.find(mesh_line), mesh_line.size(), "shape = \"sphere\"\nradius = 0.5");
   const render::Image analytic = draw_with(sphere, &pack, {}, 600, 11), mesh = draw_with(kStridedScene, &pack, {}, 600, 12);
+  // Ideal strides through the sphere's own steps: the true transport, brute force's image.
+  const render::Image ideal = draw_with(sphere, &pack, {true, true}, 300, 13), brute = draw(sphere, 300, 14);
+  EXPECT_GT(ideal.ideal_collisions, ideal.paths);
+  const ImageComparison e = compare_images(brute.mean, brute.variance_of_mean, ideal.mean, ideal.variance_of_mean, 24, 24, 3, 4);
+  EXPECT_LT(e.max_block_z, 4.5);
+  for (int c = 0; c < 3; ++c) EXPECT_LT(std::abs(e.mean_z[std::size_t(c)]), 4.5) << c;
   EXPECT_GT(analytic.strides, analytic.paths / 4);
   EXPECT_GT(analytic.rays_by[render::kShadowExit], 0);
   EXPECT_GT(analytic.rays_by[render::kShadowCollision], 0);

@@ -117,8 +117,9 @@ class ScenePaths {
   // A real collision after a flight of t: the albedo, the free radius carried or refreshed, shadow
   // rays, and a new direction from the phase function.
   void collide(State& s, int c, const ChannelMedium& m, double t, PixelRng& rng, PathCounters& counters) const;
-  // A new direction from the phase function at a collision.
-  void scatter(State& s, const ChannelMedium& m, PixelRng& rng) const;
+  // The direction on from w at a collision, drawn from the phase function; the path keeps the
+  // cosine its density needs where it later meets a light.
+  Vec3 scatter(State& s, const ChannelMedium& m, const Vec3& w, PixelRng& rng) const;
   // Inside an analytic sphere of homogeneous medium nothing else lies (SceneGeometry::sphere):
   // a flight leaves where its end lies outside, and a pack's sphere of radius r fits about x
   // where |x - centre|^2 <= (R - r)^2. Its steps need no free radius and cast no flight ray.
@@ -145,10 +146,10 @@ class ScenePaths {
   void ideal_stride(State& s, const ChannelMedium& m, double r, PixelRng& rng, PathCounters& counters) const;
   bool outside_step(State& s, int c, PixelRng& rng, PathCounters& counters) const;
 
-  // An object's grid (if its medium has one) placed, with its stride rooms at `tolerance` built
-  // once per grid (none below 0: brute force asks for none).
-  PlacedGrid place_grid(const scene::MediumSpec& spec, const scene::ObjectSpec& o, double tolerance);
-  std::vector<PlacedGrid> placed_;  // the grids placed, each with its rooms
+  // An object's grid (if its medium has one) placed, with its stride rooms at `tolerance` (none
+  // below 0: brute force asks for none), shared with a grid placed before.
+  static PlacedGrid place_grid(const scene::MediumSpec& spec, const scene::ObjectSpec& o, double tolerance,
+                               std::vector<PlacedGrid>& placed_before);
 
   const scene::RenderScene& scene_;
   const SceneGeometry& geometry_;
