@@ -149,7 +149,9 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
       if (!std::isfinite(t)) return false;  // a grid's flight past a boundary no ray found: lost in rounding
     }
     collide(s, c, m, t, rng, counters);
-    if (spheres) return true;  // the next step may stride
+    // The next step may stride, unless the closest look has just left no room for the smallest
+    // sphere (the boundary shell): then the next collision follows here, with the outer loop's draws.
+    if (spheres && !(m.homogeneous() && s.tight && m.sigma_t() * s.bound < spheres->tau(0))) return true;
     if (!survives_roulette(s.throughput, rng)) return false;
   }
 }

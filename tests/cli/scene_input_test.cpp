@@ -1,4 +1,4 @@
-// Scene inputs are refused or read exactly (docs/formats.md "Render scenes", "Meshes"): TOML
+// Scene inputs are refused or read exactly (docs/scenes.md "Render scenes", "Meshes"): TOML
 // nested too deep, outputs that name an input, meshes and environment maps that would be
 // misread, files that are not regular files, values that are not what they claim; each with one
 // line naming the file, exit status 2, and every input and earlier output left byte-identical.

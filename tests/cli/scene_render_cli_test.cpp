@@ -1,4 +1,4 @@
-// `stf render SCENE.toml` (docs/render.md "Scenes", docs/formats.md "Render scenes"): the strided
+// `stf render SCENE.toml` (docs/render.md "Scenes", docs/scenes.md "Render scenes"): the strided
 // image of a mesh in colour agrees with brute force, the image layout, and bad scenes.
 #include <H5Cpp.h>
 

@@ -196,7 +196,7 @@ TEST_F(SceneTest, LookupPicksTheLargestSphereThatFits) {
   EXPECT_EQ(find_entry(pack, a, 0.4, 11, 1, radius), nullptr);     // another g
   EXPECT_EQ(find_entry(pack, a * (1 - 1e-6), 0.5, 11, 1, radius), nullptr);  // another albedo
   // The inner-loop lookup gives the same sphere and radius at every free radius.
-  for (const auto [albedo, g] : {std::pair{a, 0.5}, {1.0, 0.0}, {0.5, 0.5}}) {
+  for (const auto& [albedo, g] : {std::pair{a, 0.5}, {1.0, 0.0}, {0.5, 0.5}}) {
     const SphereLookup lookup(pack, albedo, g);
     for (double free = 0; free < 2; free += 0.01) {
       double r1 = -1, r2 = -1;

@@ -1,4 +1,4 @@
-// A render scene (`stf render SCENE.toml`, layout in docs/formats.md "Render scenes"): a pinhole
+// A render scene (`stf render SCENE.toml`, layout in docs/scenes.md "Render scenes"): a pinhole
 // camera, a sky (or an environment map) and a sun, media in RGB, objects (closed OBJ meshes or analytic spheres) each
 // filled with one medium behind an index-matched or smooth dielectric boundary, and an
 // optional diffuse ground plane.
@@ -30,7 +30,7 @@ struct LightSpec {
   Vec3 sun_direction = normalize(Vec3{1, 1, -1});  // towards the sun, unit
   Rgb sun{50, 50, 50};        // radiance within the sun's disc, added to the sky's
   double sun_angle = 5;       // half-angle of the disc, degrees
-  // A latitude-longitude map in place of the sky (docs/formats.md, "Render scene"), resolved against
+  // A latitude-longitude map in place of the sky (docs/scenes.md, "Render scene"), resolved against
   // the scene's folder, and its scale; "" for none.
   std::string environment;
   double environment_scale = 1;

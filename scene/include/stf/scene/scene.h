@@ -1,6 +1,6 @@
 // The scene file: the media a renderer will use and how to precompute for them (TOML).
 //
-//   [settings]                 (all optional; docs/formats.md, "Pack recipe")
+//   [settings]                 (all optional; docs/scenes.md, "Pack recipe")
 //   paths = 4e6                paths per precomputed table
 //   grid = "healpix:16"        direction cells
 //   alpha_bins = 45
