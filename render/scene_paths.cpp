@@ -81,6 +81,7 @@ ScenePaths::ScenePaths(const scene::RenderScene& scene, const SceneGeometry& geo
       media_.push_back(m);
       refresh_below_.push_back(refresh);
       rooms_.push_back(sphere_room(geometry.sphere(int(ior_.size()) - 1), m, lookup.get()));
+      rooms_.back().alone = scene.objects.size() == 1 && !scene.ground.present && o.ior == 1;
       lookups_.push_back(std::move(lookup));
     }
   }
@@ -196,8 +197,12 @@ bool ScenePaths::sphere_step(State& s, int c, const SphereRoom& room, PixelRng& 
     const Vec3 y = o + t * w;
     if (dot(y, y) > room.radius2) {  // the flight leaves: where, exactly
       s.x = room.centre + o, s.w = w;
-      const SurfaceHit h = geometry_.leave_sphere(s.x, w, s.inside);
       counters.count_ray(kFlightRay);
+      if (room.alone) {
+        s.radiance += s.throughput * escape(s, c);
+        return false;
+      }
+      const SurfaceHit h = geometry_.leave_sphere(s.x, w, s.inside);
       if (h.found) {
         s.x += h.t * w, s.bound = -1;
         cross(s, h, rng);

@@ -162,29 +162,36 @@ g = 0.7
 
 // Inside an analytic sphere paths take their own steps (no free radius, no flight rays: its
 // surface is the only one inside it); in strides with shadow rays at collisions and exits they
-// draw the image the general loop draws through the icosphere of that radius.
+// draw the image the general loop draws through the icosphere of that radius. Without the ground
+// the sphere is alone: a path leaving it takes the sky and the sun (with its MIS weight) at once,
+// casting no ray after it.
 TEST_F(SceneRender, AnalyticSphereStridesAgreeWithTheIcosphere) {
   const std::vector<PackEntry> pack = test_pack(STF_RENDER_PACK);
   std::string sphere = kStridedScene;
   const std::string mesh_line = sphere.substr(sphere.find("mesh = "), sphere.find('\n', sphere.find("mesh = ")) - sphere.find("mesh = "));
   sphere.replace(sphere.find(mesh_line), mesh_line.size(), "shape = \"sphere\"\nradius = 0.5");
-  const render::Image analytic = draw_with(sphere, &pack, {}, 600, 11), mesh = draw_with(kStridedScene, &pack, {}, 600, 12);
   // Ideal strides through the sphere's own steps: the true transport, brute force's image.
   const render::Image ideal = draw_with(sphere, &pack, {true, true}, 300, 13), brute = draw(sphere, 300, 14);
   EXPECT_GT(ideal.ideal_collisions, ideal.paths);
   const ImageComparison e = compare_images(brute.mean, brute.variance_of_mean, ideal.mean, ideal.variance_of_mean, 24, 24, 3, 4);
   EXPECT_LT(e.max_block_z, 4.5);
   for (int c = 0; c < 3; ++c) EXPECT_LT(std::abs(e.mean_z[std::size_t(c)]), 4.5) << c;
-  EXPECT_GT(analytic.strides, analytic.paths / 4);
-  EXPECT_GT(analytic.rays_by[render::kShadowExit], 0);
-  EXPECT_GT(analytic.rays_by[render::kShadowCollision], 0);
-  const ImageComparison r =
-      compare_images(analytic.mean, analytic.variance_of_mean, mesh.mean, mesh.variance_of_mean, 24, 24, 3, 4);
-  EXPECT_GT(r.blocks, 80);
-  EXPECT_LT(r.max_block_z, 4.5);
-  for (int c = 0; c < 3; ++c) {
-    EXPECT_LT(std::abs(r.mean_z[std::size_t(c)]), 4.5) << c;
-    EXPECT_NEAR(r.mean_ratio[std::size_t(c)], 1, 0.01) << c;
+  const auto without_ground = [](std::string scene) { return scene.substr(0, scene.find("[ground]")); };
+  for (const bool alone : {false, true}) {
+    const std::string a = alone ? without_ground(sphere) : sphere, m = alone ? without_ground(kStridedScene) : kStridedScene;
+    const render::Image analytic = draw_with(a, &pack, {}, 600, 11), mesh = draw_with(m, &pack, {}, 600, 12);
+    EXPECT_GT(analytic.strides, analytic.paths / 4) << alone;
+    EXPECT_GT(analytic.rays_by[render::kShadowExit], 0) << alone;
+    EXPECT_GT(analytic.rays_by[render::kShadowCollision], 0) << alone;
+    EXPECT_EQ(analytic.rays_by[render::kOutsideRay] == 0, alone);  // alone: no ray after leaving
+    const ImageComparison r =
+        compare_images(analytic.mean, analytic.variance_of_mean, mesh.mean, mesh.variance_of_mean, 24, 24, 3, 4);
+    EXPECT_GT(r.blocks, 80) << alone;
+    EXPECT_LT(r.max_block_z, 4.5) << alone;
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_LT(std::abs(r.mean_z[std::size_t(c)]), 4.5) << alone << " " << c;
+      EXPECT_NEAR(r.mean_ratio[std::size_t(c)], 1, 0.01) << alone << " " << c;
+    }
   }
 }
 

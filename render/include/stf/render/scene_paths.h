@@ -126,6 +126,9 @@ class ScenePaths {
   struct SphereRoom {
     Vec3 centre;
     double radius = 0, radius2 = 0;  // radius 0: the object is not such a sphere
+    // The scene's only object, no ground, index matched: a path leaving it meets nothing more,
+    // so it escapes at once (no exit point, no ray after it).
+    bool alone = false;
     std::vector<double> limit2, stride_radius;  // per sphere of the lookup, limit2 descending
     // The largest sphere of the lookup that fits at squared distance d2 from the centre, or -1.
     int fitting(double d2) const {
