@@ -6,7 +6,10 @@ For each scene file (and each --densities factor, which scales every medium's co
   - builds the strides' pack through a cache (a 1-spp strided render; its precompute seconds),
   - renders brute force and strides at --size pixels and --spp samples (seeds 1 and 2) for each
     --free-radius source (grid: the distance grid, query: exact Embree queries), --repeats
-    times in turns, the seconds the median of the turns,
+    times in turns, the seconds the median of the turns; with --fresh-seeds each turn draws new
+    images (seeds 2k + 1 and 2k + 2), and the images of all turns are pooled (their mean, its
+    variance): one pair's variance ratio scatters by tens of percent where rare paths find a
+    light (variance_ratio_per_seed_pair shows it),
 and reports per run: seconds, collisions, strides, distance queries and shadow rays per path,
 and brute force's collisions per second; per pair: the equal-error speed-up
   (seconds_brute * variance_brute) / (seconds_stf * variance_stf)
@@ -38,7 +41,7 @@ EG 2021: 2.2, 3.9, 7.5 and 11.8x at 1/8, 1/4, 1/2 and 1 times its scenes' densit
 sample count with approximate steps).
 Usage:
   bench/scene_bench.py SCENE.toml [MORE.toml] [--out DIR] [--size 64] [--spp 60]
-                       [--densities 1] [--free-radius grid,query] [--repeats 3] [--ideal] [--pictures]
+                       [--densities 1] [--free-radius grid,query] [--repeats 3] [--fresh-seeds] [--ideal] [--pictures]
                        [--density-tolerances 0.1] [--reference-spp 0]
 Needs build/stf and Debian's python3-matplotlib, python3-h5py and python3-numpy.
 """
@@ -132,18 +135,32 @@ def pay_off(pack_seconds, speedup, saved):
     return {"frames_to_pay_off": pack_seconds / saved, "pays_off": True}
 
 
+def pooled(runs):
+    """Renders of one scene by one method with different seeds as one: the mean of their means,
+    and its variance (the sum of theirs over the count squared)."""
+    k = len(runs)
+    return sum(r[0] for r in runs) / k, sum(r[1] for r in runs) / k**2
+
+
 def timed_pair(a, stf, scene, name, free_radius, tolerance):
-    """Both methods --repeats times in turns (the same seeds, so the same images); each run's
-    seconds the median of its turns, as this machine's load comes and goes."""
+    """Both methods --repeats times in turns; each run's seconds the median of its turns, as this
+    machine's load comes and goes. The turns draw the same images (seeds 1 and 2), or with
+    --fresh-seeds new ones (seeds 2k + 1 and 2k + 2 in turn k), pooled: a summed pixel variance is
+    heavy-tailed where rare paths find a light, and one pair's ratio scatters by tens of percent."""
     turns, strided = [], ("--density-tolerance", tolerance)
-    for _ in range(a.repeats):
-        turns.append((render(stf, scene, "brute", os.path.join(a.out, f"{name}_{free_radius}_brute.h5"), a, 1, free_radius),
-                      render(stf, scene, "stf", os.path.join(a.out, f"{name}_{free_radius}_stf.h5"), a, 2, free_radius,
+    for k in range(a.repeats):
+        seed = 2 * k if a.fresh_seeds else 0
+        turns.append((render(stf, scene, "brute", os.path.join(a.out, f"{name}_{free_radius}_brute.h5"), a, seed + 1,
+                             free_radius),
+                      render(stf, scene, "stf", os.path.join(a.out, f"{name}_{free_radius}_stf.h5"), a, seed + 2, free_radius,
                              strided)))
-    (mb, vb, sb), (ms, vs, ss) = turns[-1]
+    used = turns if a.fresh_seeds else turns[-1:]
+    (mb, vb), (ms, vs) = pooled([t[0] for t in used]), pooled([t[1] for t in used])
+    sb, ss = turns[-1][0][2], turns[-1][1][2]
     sb["seconds"] = float(np.median([t[0][2]["seconds"] for t in turns]))
     ss["seconds"] = float(np.median([t[1][2]["seconds"] for t in turns]))
-    return mb, vb, sb, ms, vs, ss
+    ratios = [[float(t[1][1][..., c].sum() / t[0][1][..., c].sum()) for c in range(3)] for t in used]
+    return mb, vb, sb, ms, vs, ss, ratios
 
 
 def bias(ms, vs, reference, spp):
@@ -168,7 +185,7 @@ def bias(ms, vs, reference, spp):
 
 
 def compare(a, stf, scene, name, free_radius, pack_seconds, tolerance=0.1, reference=None):
-    mb, vb, sb, ms, vs, ss = timed_pair(a, stf, scene, name, free_radius, tolerance)
+    mb, vb, sb, ms, vs, ss, ratios = timed_pair(a, stf, scene, name, free_radius, tolerance)
     efficiency = [(sb["seconds"] * vb[..., c].sum()) / (ss["seconds"] * vs[..., c].sum()) for c in range(3)]
     speedup = np.mean(efficiency)
     z = block_z(mb, vb, ms, vs)
@@ -177,6 +194,7 @@ def compare(a, stf, scene, name, free_radius, pack_seconds, tolerance=0.1, refer
     row = {"scene": name, "free_radius": free_radius, "density_tolerance": tolerance, "equal_error_speedup": float(speedup),
            "equal_error_speedup_per_channel": [float(e) for e in efficiency],
            "variance_ratio_per_channel": [float(vs[..., c].sum() / vb[..., c].sum()) for c in range(3)],
+           "variance_ratio_per_seed_pair": ratios,
            "max_block_z": float(np.abs(z).max()),
            "mean_ratio": [float(ms[..., c].mean() / mb[..., c].mean()) for c in range(3)],
            "mean_z": [float((ms[..., c].sum() - mb[..., c].sum()) / np.sqrt(vb[..., c].sum() + vs[..., c].sum()))
@@ -208,7 +226,7 @@ def compare(a, stf, scene, name, free_radius, pack_seconds, tolerance=0.1, refer
                     "null_collisions_per_collision": s.get("null_collisions", 0) / max(1, s["collisions"]),
                     "grid_bytes": s["grid_bytes"], "density_grid_bytes": s.get("density_grid_bytes", 0)}
     if reference is not None:
-        row.update(bias(ms, vs, reference, a.spp))
+        row.update(bias(ms, vs, reference, a.spp * (a.repeats if a.fresh_seeds else 1)))
     if a.pictures:
         picture(mb, ms, z, os.path.join(a.out, f"{name}_pair.png"), a.exposure)
     return row
@@ -299,6 +317,7 @@ def main():
     p.add_argument("--densities", default="1")
     p.add_argument("--free-radius", default="grid,query")
     p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--fresh-seeds", action="store_true")
     p.add_argument("--ideal", action="store_true")
     p.add_argument("--pictures", action="store_true")
     p.add_argument("--exposure", type=float, default=-0.5)
