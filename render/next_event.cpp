@@ -79,10 +79,9 @@ double ScenePaths::collision_gain_bound(const ChannelMedium& m, const Vec3& w) c
   return std::min(0.5, phase_density(m, extreme) / sun_pdf_);
 }
 
-void ScenePaths::nee_at_collision(State& s, int c, double bound, PixelRng& rng, PathCounters& counters) const {
-  if (ior_[std::size_t(s.inside)] != 1) return;  // behind a dielectric no shadow ray passes
+void ScenePaths::nee_at_collision(State& s, int c, double bound, double u, PixelRng& rng, PathCounters& counters) const {
   const ChannelMedium& m = medium(s.inside, c);
-  const double most = m.transmittance_bound(bound), u = rng.uniform();  // no direction leaves sooner
+  const double most = m.transmittance_bound(bound);  // no direction leaves sooner
   if (!may_cast(u, most) || u >= collision_gain_bound(m, s.w) * most / kShadowRoulette) return;
   const Vec3 x = s.x, w = s.w;
   s.radiance += s.throughput * direct({c, kShadowCollision, most, u}, rng, counters,
@@ -94,7 +93,10 @@ void ScenePaths::nee_at_exit(State& s, int c, PixelRng& rng, PathCounters& count
   s.after_nee = exit_mis_, s.scatter_medium = nullptr;
   s.bound = geometry_.free_radius(s.x, s.inside), ++counters.distance_queries;  // the next step's too
   s.tight = geometry_.method() != FreeRadius::kGrid;
-  const double most = medium(s.inside, c).transmittance_bound(s.bound), u = rng.uniform();
+  const ChannelMedium& m = medium(s.inside, c);
+  const double u = rng.uniform();
+  if (!may_pass(u, m.least_optical_depth(s.bound))) return;
+  const double most = m.transmittance_bound(s.bound);
   if (!may_cast(u, most)) return;
   const Vec3 x = s.x;
   const ExitVertex& exit = s.exit;

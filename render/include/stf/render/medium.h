@@ -80,8 +80,10 @@ class ChannelMedium {
     if (!grid_) return {free_radius, sigma_t_max_};
     return grid_stride_ball(x, free_radius, smallest_tau, largest_tau);
   }
-  // The most any segment of `length` transmits: exp(-smallest sigma_t length).
-  double transmittance_bound(double length) const { return std::exp(-sigma_t_min_ * length); }
+  // The least optical depth of any segment of `length` (smallest sigma_t times it), and the most
+  // such a segment transmits, exp(-that).
+  double least_optical_depth(double length) const { return sigma_t_min_ * length; }
+  double transmittance_bound(double length) const { return std::exp(-least_optical_depth(length)); }
 
  private:
   double grid_flight(const Vec3& x, const Vec3& w, PixelRng& rng, PathCounters& counters) const;
