@@ -9,13 +9,13 @@
 namespace stf::render {
 
 ChannelMedium::ChannelMedium(double sigma_s, double sigma_a, double g)
-    : sigma_t_max_(sigma_s + sigma_a), sigma_t_min_(sigma_t_max_), inv_sigma_t_(1 / sigma_t_max_),
+    : sigma_t_max_(sigma_s + sigma_a), inv_sigma_t_(1 / sigma_t_max_),
       albedo_(sigma_s / sigma_t_max_), g_(g), hg_(HgParams<double>::make(g)) {}
 
 ChannelMedium::ChannelMedium(double sigma_s, double sigma_a, double g, PlacedGrid placed)
     : ChannelMedium(sigma_s, sigma_a, g) {
   sigma_t_unit_ = sigma_s + sigma_a, scale_ = placed.scale, translate_ = placed.translate, tolerance_ = placed.tolerance;
-  sigma_t_max_ = sigma_t_unit_ * placed.grid->max_density(), sigma_t_min_ = 0;  // outside the support the density is 0
+  sigma_t_max_ = sigma_t_unit_ * placed.grid->max_density();
   inv_sigma_t_ = 1 / sigma_t_max_;
   grid_ = std::move(placed.grid);
   rooms_ = placed.rooms;
@@ -35,6 +35,21 @@ double ChannelMedium::grid_transmittance(const Vec3& x, const Vec3& w, double le
   const media::Transmittance t = media::ratio_track(*grid_, sigma_t_unit_ * scale_, (x - translate_) / scale_, w,
                                                     length / scale_, [&rng] { return rng.uniform(); });
   return t.transmittance;
+}
+
+double ChannelMedium::grid_least_optical_depth(const Vec3& x, double length) const {
+  const Vec3 u = grid_->to_lattice((x - translate_) / scale_);
+  const double l[3] = {u.x, u.y, u.z};
+  int b[3];
+  double inside = HUGE_VAL;  // how far every segment from x stays in its brick, in the grid's frame
+  for (int a = 0; a < 3; ++a) {
+    b[a] = int(std::floor((l[a] + 1) / media::DensityGrid::kBrick));
+    if (!(b[a] >= 0 && b[a] < grid_->brick_counts()[std::size_t(a)])) return 0;  // NaN too
+    const double lower = media::DensityGrid::brick_lower(b[a]), upper = media::DensityGrid::brick_lower(b[a] + 1);
+    inside = std::min(inside, std::min(l[a] - lower, upper - l[a]) / grid_->lattice_reach(a));
+  }
+  // The brick's least corner value bounds the trilinear field in it from below.
+  return sigma_t_unit_ * grid_->brick(b[0], b[1], b[2]).min * std::min(length, inside * scale_);
 }
 
 StrideBall ChannelMedium::grid_stride_ball(const Vec3& x, double free_radius, double smallest_tau,

@@ -81,7 +81,7 @@ double ScenePaths::collision_gain_bound(const ChannelMedium& m, const Vec3& w) c
 
 void ScenePaths::nee_at_collision(State& s, int c, double bound, double u, PixelRng& rng, PathCounters& counters) const {
   const ChannelMedium& m = medium(s.inside, c);
-  const double most = m.transmittance_bound(bound);  // no direction leaves sooner
+  const double most = m.transmittance_bound(s.x, bound);  // no direction leaves sooner
   if (!may_cast(u, most) || u >= collision_gain_bound(m, s.w) * most / kShadowRoulette) return;
   const Vec3 x = s.x, w = s.w;
   s.radiance += s.throughput * direct({c, kShadowCollision, most, u}, rng, counters,
@@ -95,8 +95,9 @@ void ScenePaths::nee_at_exit(State& s, int c, PixelRng& rng, PathCounters& count
   s.tight = geometry_.method() != FreeRadius::kGrid;
   const ChannelMedium& m = medium(s.inside, c);
   const double u = rng.uniform();
-  if (!may_pass(u, m.least_optical_depth(s.bound))) return;
-  const double most = m.transmittance_bound(s.bound);
+  const double depth = m.least_optical_depth(s.x, s.bound);
+  if (!may_pass(u, depth)) return;
+  const double most = std::exp(-depth);
   if (!may_cast(u, most)) return;
   const Vec3 x = s.x;
   const ExitVertex& exit = s.exit;

@@ -230,6 +230,35 @@ TEST(GridStrides, ABallNeverHoldsADensityOutsideItsTolerance) {
   }
 }
 
+// The most a segment from x may transmit (what the shadow rays' roulette weighs a ray by) is at
+// least what it does: its optical depth, the trilinear field summed along it by the midpoint rule,
+// is never below the bound (x's brick's least density over the part the brick must hold). In the
+// constant core the bound is that depth itself where the segment stays in x's brick.
+TEST(GridNextEvent, NoSegmentTransmitsMoreThanItsBound) {
+  auto grid = std::make_shared<const media::DensityGrid>(media::DensityGrid::from_values(cored(), 128, 128, 128, kCube));
+  const Vec3 translate{0.2, -0.1, 0.4};
+  const double scale = 1.3;
+  const render::ChannelMedium m(792, 8, 0.5, {grid, scale, translate, -1, nullptr});  // sigma_t 800 a unit density
+  render::PixelRng rng(6, 0);
+  int deep = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const Vec3 x = translate + scale * Vec3{2 * rng.uniform() - 1, 2 * rng.uniform() - 1, 2 * rng.uniform() - 1};
+    Vec3 d;
+    do d = Vec3{2 * rng.uniform() - 1, 2 * rng.uniform() - 1, 2 * rng.uniform() - 1};
+    while (dot(d, d) > 1 || dot(d, d) < 1e-4);
+    d = normalize(d);
+    const double length = 0.3 * rng.uniform(), bound = m.least_optical_depth(x, length);
+    constexpr int kSteps = 2000;
+    double depth = 0;
+    for (int k = 0; k < kSteps; ++k)
+      depth += 800 * grid->density((x + (k + 0.5) / kSteps * length * d - translate) / scale) * length / kSteps;
+    ASSERT_GE(depth, bound * (1 - 1e-4)) << "trial " << trial << ", length " << length;
+    EXPECT_NEAR(m.transmittance_bound(x, length), std::exp(-bound), 1e-15);
+    deep += bound > 5;
+  }
+  EXPECT_GT(deep, 200);  // the bound is of use: deep in the core it turns shadow rays away
+}
+
 // In a grid of one density the ball is the free radius at that density: the homogeneous stride.
 TEST(GridStrides, AStrideInAConstantGridIsTheHomogeneousStride) {
   // Over [-2, 2]^3 the grid is constant within about 0.94 of the centre (its outer bricks reach

@@ -80,21 +80,27 @@ class ChannelMedium {
     if (!grid_) return {free_radius, sigma_t_max_};
     return grid_stride_ball(x, free_radius, smallest_tau, largest_tau);
   }
-  // The least optical depth of any segment of `length` (smallest sigma_t times it), and the most
-  // such a segment transmits, exp(-that).
-  double least_optical_depth(double length) const { return sigma_t_min_ * length; }
-  double transmittance_bound(double length) const { return std::exp(-least_optical_depth(length)); }
+  // A lower bound of the optical depth of every segment from x of `length` inside the medium (a
+  // free radius: no boundary nearer), and the most such a segment transmits, exp(-that). A grid
+  // takes the least density of x's majorant brick over the part of the segment the brick must
+  // hold (the distance to its nearest face).
+  double least_optical_depth(const Vec3& x, double length) const {
+    if (!grid_) return sigma_t_max_ * length;
+    return grid_least_optical_depth(x, length);
+  }
+  double transmittance_bound(const Vec3& x, double length) const { return std::exp(-least_optical_depth(x, length)); }
 
  private:
   double grid_flight(const Vec3& x, const Vec3& w, PixelRng& rng, PathCounters& counters) const;
   double grid_transmittance(const Vec3& x, const Vec3& w, double length, PixelRng& rng) const;
   StrideBall grid_stride_ball(const Vec3& x, double free_radius, double smallest_tau, double largest_tau) const;
+  double grid_least_optical_depth(const Vec3& x, double length) const;
   // Whether a density range [least, most] is one a stride may take: least > 0, most <= (1 + tolerance) least.
   bool within_tolerance(std::pair<double, double> range) const {
     return range.first > 0 && range.second <= (1 + tolerance_) * range.first;
   }
 
-  double sigma_t_max_ = 0, sigma_t_min_ = 0, inv_sigma_t_ = 0, albedo_ = 0, g_ = 0;
+  double sigma_t_max_ = 0, inv_sigma_t_ = 0, albedo_ = 0, g_ = 0;
   HgParams<double> hg_{};
   std::shared_ptr<const media::DensityGrid> grid_;
   double sigma_t_unit_ = 0, scale_ = 1;  // the grid's sigma_t per unit density; its placement

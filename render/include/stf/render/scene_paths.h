@@ -88,9 +88,9 @@ class ScenePaths {
   // min(1, g most / kShadowRoulette), u below it. Before any light is drawn, u is held against
   // the most any gain allows (1/2): deep in a medium most vertices stop there.
   static bool may_cast(double u, double most);
-  // Whether a collision at free radius `bound` in medium m may cast shadow rays, drawing the
+  // Whether a collision at x, free radius `bound`, in medium m may cast shadow rays, drawing the
   // uniform u that decides them (none behind a dielectric, where no shadow ray passes).
-  bool may_light(const State& s, const ChannelMedium& m, double bound, double& u, PixelRng& rng) const;
+  bool may_light(const State& s, const Vec3& x, const ChannelMedium& m, double bound, double& u, PixelRng& rng) const;
   // A tighter bound on the gain of a collision's shadow rays: its phase density at the sun's
   // disc over the disc's density (no map), else 1/2.
   double collision_gain_bound(const ChannelMedium& m, const Vec3& w) const;
