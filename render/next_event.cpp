@@ -79,9 +79,9 @@ double ScenePaths::collision_gain_bound(const ChannelMedium& m, const Vec3& w) c
   return std::min(0.5, phase_density(m, extreme) / sun_pdf_);
 }
 
-void ScenePaths::nee_at_collision(State& s, int c, double bound, double u, PixelRng& rng, PathCounters& counters) const {
+void ScenePaths::nee_at_collision(State& s, int c, const ShadowOdds& odds, PixelRng& rng, PathCounters& counters) const {
   const ChannelMedium& m = medium(s.inside, c);
-  const double most = m.transmittance_bound(s.x, bound);  // no direction leaves sooner
+  const double most = std::exp(-odds.depth), u = odds.u;  // no direction leaves sooner
   if (!may_cast(u, most) || u >= collision_gain_bound(m, s.w) * most / kShadowRoulette) return;
   const Vec3 x = s.x, w = s.w;
   s.radiance += s.throughput * direct({c, kShadowCollision, most, u}, rng, counters,

@@ -166,10 +166,10 @@ bool ScenePaths::medium_step(State& s, int c, PixelRng& rng, PathCounters& count
 
 // Inlined into both collision loops: deep in a medium it is all a collision's lighting costs.
 [[gnu::always_inline]] inline bool ScenePaths::may_light(const State& s, const Vec3& x, const ChannelMedium& m, double bound,
-                                                         double& u, PixelRng& rng) const {
+                                                         ShadowOdds& odds, PixelRng& rng) const {
   if (!next_event_ || ior_[std::size_t(s.inside)] != 1) return false;  // behind a dielectric no shadow ray passes
-  u = rng.uniform();
-  return may_pass(u, m.least_optical_depth(x, bound));
+  odds.u = rng.uniform(), odds.depth = m.least_optical_depth(x, bound);
+  return may_pass(odds.u, odds.depth);
 }
 
 void ScenePaths::collide(State& s, int c, const ChannelMedium& m, double t, PixelRng& rng, PathCounters& counters) const {
@@ -181,8 +181,8 @@ void ScenePaths::collide(State& s, int c, const ChannelMedium& m, double t, Pixe
   s.tight = false;
   if (s.bound - t >= refresh_below_[std::size_t(s.inside * 3 + c)]) s.bound -= t;
   else s.bound = 0, look_closer(s), ++counters.distance_queries;
-  double u;
-  if (may_light(s, s.x, m, s.bound, u, rng)) nee_at_collision(s, c, s.bound, u, rng, counters);
+  ShadowOdds odds;
+  if (may_light(s, s.x, m, s.bound, odds, rng)) nee_at_collision(s, c, odds, rng, counters);
   s.w = scatter(s, m, s.w, rng);
 }
 
@@ -223,9 +223,9 @@ bool ScenePaths::sphere_step(State& s, int c, const SphereRoom& room, PixelRng& 
     s.throughput *= m.albedo();
     if (next_event_) {
       const double bound = room.radius - length(o);
-      double u;
-      if (may_light(s, room.centre + o, m, bound, u, rng))
-        s.x = room.centre + o, s.w = w, s.bound = bound, nee_at_collision(s, c, bound, u, rng, counters);
+      ShadowOdds odds;
+      if (may_light(s, room.centre + o, m, bound, odds, rng))
+        s.x = room.centre + o, s.w = w, s.bound = bound, nee_at_collision(s, c, odds, rng, counters);
     }
     w = scatter(s, m, w, rng);
     if (!survives_roulette(s.throughput, rng)) return false;

@@ -81,14 +81,13 @@ class ChannelMedium {
     return grid_stride_ball(x, free_radius, smallest_tau, largest_tau);
   }
   // A lower bound of the optical depth of every segment from x of `length` inside the medium (a
-  // free radius: no boundary nearer), and the most such a segment transmits, exp(-that). A grid
-  // takes the least density of x's majorant brick over the part of the segment the brick must
-  // hold (the distance to its nearest face).
+  // free radius: no boundary nearer), so exp(-that) bounds what it transmits. A grid takes the
+  // least density of x's majorant brick over the part of the segment the brick must hold (the
+  // distance to its nearest face).
   double least_optical_depth(const Vec3& x, double length) const {
     if (!grid_) return sigma_t_max_ * length;
     return grid_least_optical_depth(x, length);
   }
-  double transmittance_bound(const Vec3& x, double length) const { return std::exp(-least_optical_depth(x, length)); }
 
  private:
   double grid_flight(const Vec3& x, const Vec3& w, PixelRng& rng, PathCounters& counters) const;

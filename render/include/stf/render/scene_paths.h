@@ -88,9 +88,14 @@ class ScenePaths {
   // min(1, g most / kShadowRoulette), u below it. Before any light is drawn, u is held against
   // the most any gain allows (1/2): deep in a medium most vertices stop there.
   static bool may_cast(double u, double most);
+  // The uniform that decides a vertex's shadow rays, and the least optical depth from the vertex
+  // toward any light (its transmittance bound, most, is exp(-depth)).
+  struct ShadowOdds {
+    double u = 0, depth = 0;
+  };
   // Whether a collision at x, free radius `bound`, in medium m may cast shadow rays, drawing the
-  // uniform u that decides them (none behind a dielectric, where no shadow ray passes).
-  bool may_light(const State& s, const Vec3& x, const ChannelMedium& m, double bound, double& u, PixelRng& rng) const;
+  // uniform that decides them (none behind a dielectric, where no shadow ray passes).
+  bool may_light(const State& s, const Vec3& x, const ChannelMedium& m, double bound, ShadowOdds& odds, PixelRng& rng) const;
   // A tighter bound on the gain of a collision's shadow rays: its phase density at the sun's
   // disc over the disc's density (no map), else 1/2.
   double collision_gain_bound(const ChannelMedium& m, const Vec3& w) const;
@@ -109,7 +114,7 @@ class ScenePaths {
   template <typename Density, typename Start>
   double light_ray(const LightSample& light, const ShadowVertex& v, PixelRng& rng, PathCounters& counters,
                    const Density& density, const Start& start) const;
-  void nee_at_collision(State& s, int c, double bound, double u, PixelRng& rng, PathCounters& counters) const;
+  void nee_at_collision(State& s, int c, const ShadowOdds& odds, PixelRng& rng, PathCounters& counters) const;
   // At a stride's smooth exit in an index-matched medium (State::exit set): shadow rays weighted
   // by the exit's direction density, the free radius at the exit found for them and for the
   // next step.
