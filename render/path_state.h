@@ -3,7 +3,6 @@
 // (scene_paths.cpp walks paths, next_event.cpp casts their shadow rays).
 #pragma once
 
-#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -30,7 +29,8 @@ inline double power_heuristic(double a, double b) { return a * a / (a * a + b * 
 // spent a third of its time on those exponentials).
 inline bool may_pass(double u, double depth) {
   if (depth < 4.6) return true;  // below ln(0.5 / kShadowRoulette) = 4.605 every u passes: the shallow, at once
-  const int k = int(std::clamp(depth * 1.4426950408889634 - 1e-6, 0.0, 1000.0));
+  if (!(depth < 700)) return false;  // exp(-depth) is below 1e-304, or depth is not a number: none passes
+  const int k = int(depth * 1.4426950408889634 - 1e-6);
   return u * std::bit_cast<double>(std::uint64_t(k + 1023) << 52) < 0.5 / kShadowRoulette;
 }
 

@@ -11,6 +11,7 @@
 #include <fstream>
 
 #include "image_compare.h"
+#include "path_state.h"
 #include "scene_fixture.h"
 #include "strided_scene.h"
 #include "stf/render/image_file.h"
@@ -193,6 +194,24 @@ TEST_F(SceneRender, AnalyticSphereStridesAgreeWithTheIcosphere) {
       EXPECT_NEAR(r.mean_ratio[std::size_t(c)], 1, 0.01) << alone << " " << c;
     }
   }
+}
+
+// The shadow rays' first test without an exponential (may_pass) turns a vertex away only where
+// the exponential would, u < 0.5 exp(-d) / kShadowRoulette (but for u = 0 past depth 700, where
+// that bound is below 1e-302), and it turns away most of what the exponential would.
+TEST(ShadowOdds, MayPassTurnsAwayOnlyWhatTheExponentialWould) {
+  render::PixelRng rng(9, 0);
+  int refused = 0, turned = 0;
+  for (int i = 0; i < 200000; ++i) {
+    const double d = 800 * rng.uniform() * rng.uniform();
+    const double u = i % 1000 == 0 ? 0.0 : rng.uniform() * (rng.uniform() < 0.5 ? 1.0 : 1e-6);
+    const bool passes = u < 0.5 * std::exp(-d) / render::kShadowRoulette;
+    if (!render::may_pass(u, d)) {
+      ASSERT_TRUE(!passes || (u == 0 && d >= 700)) << "u " << u << ", depth " << d;
+    }
+    refused += !passes, turned += !passes && !render::may_pass(u, d);
+  }
+  EXPECT_GT(turned, 0.9 * refused) << refused;
 }
 
 // A pack with no sphere of the scene's media leaves the strided paths brute force's, draw for
