@@ -37,44 +37,49 @@ double ChannelMedium::grid_transmittance(const Vec3& x, const Vec3& w, double le
   return t.transmittance;
 }
 
-double ChannelMedium::grid_least_optical_depth(const Vec3& x, double length) const {
-  const Vec3 u = grid_->to_lattice((x - translate_) / scale_);
+bool ChannelMedium::lattice_block(const Vec3& x, int edge, const std::array<int, 3>& counts, Vec3& u, int b[3]) const {
+  u = grid_->to_lattice((x - translate_) / scale_);
   const double l[3] = {u.x, u.y, u.z};
-  int b[3];
-  double inside = HUGE_VAL;  // how far every segment from x stays in its brick, in the grid's frame
-  for (int a = 0; a < 3; ++a) {
-    b[a] = int(std::floor((l[a] + 1) / media::DensityGrid::kBrick));
-    if (!(b[a] >= 0 && b[a] < grid_->brick_counts()[std::size_t(a)])) return 0;  // NaN too
-    const double lower = media::DensityGrid::brick_lower(b[a]), upper = media::DensityGrid::brick_lower(b[a] + 1);
-    inside = std::min(inside, std::min(l[a] - lower, upper - l[a]) / grid_->lattice_reach(a));
+  for (std::size_t a = 0; a < 3; ++a) {
+    b[a] = int(std::floor((l[a] + 1) / edge));
+    if (!(b[a] >= 0 && b[a] < counts[a])) return false;  // NaN too
   }
+  return true;
+}
+
+// A ball's extent along lattice axis a is its radius times the axis's reach.
+double ChannelMedium::room_within(const Vec3& u, const int b[3], int k, int edge) const {
+  const double l[3] = {u.x, u.y, u.z};
+  double room = HUGE_VAL;
+  for (int a = 0; a < 3; ++a) {
+    const double lower = media::DensityGrid::block_lower(b[a] - k, edge), upper = media::DensityGrid::block_lower(b[a] + k + 1, edge);
+    room = std::min(room, std::min(l[a] - lower, upper - l[a]) / grid_->lattice_reach(a));
+  }
+  return room * scale_;
+}
+
+double ChannelMedium::grid_least_optical_depth(const Vec3& x, double length) const {
+  Vec3 u;
+  int b[3];
+  if (!lattice_block(x, media::DensityGrid::kBrick, grid_->brick_counts(), u, b)) return 0;
   // The brick's least corner value bounds the trilinear field in it from below.
-  return sigma_t_unit_ * grid_->brick(b[0], b[1], b[2]).min * std::min(length, inside * scale_);
+  const double inside = room_within(u, b, 0, media::DensityGrid::kBrick);
+  return sigma_t_unit_ * grid_->brick(b[0], b[1], b[2]).min * std::min(length, inside);
 }
 
 StrideBall ChannelMedium::grid_stride_ball(const Vec3& x, double free_radius, double smallest_tau,
                                            double largest_tau) const {
-  if (tolerance_ < 0) return {0, 0, true};
-  const Vec3 u = grid_->to_lattice((x - translate_) / scale_);
-  const double l[3] = {u.x, u.y, u.z};
+  Vec3 u;
   int b[3];
-  for (std::size_t a = 0; a < 3; ++a) {
-    b[a] = int(std::floor((l[a] + 1) / media::StrideRooms::kBlock));
-    if (!(b[a] >= 0 && b[a] < rooms_->counts[a])) return {0, 0, true};  // NaN too
-  }
+  if (tolerance_ < 0 || !lattice_block(x, media::StrideRooms::kBlock, rooms_->counts, u, b)) return {0, 0, true};
   // The cube of blocks within k of x's keeps the tolerance (k < 0: not even x's block, as where
-  // the density varies most): the ball may reach its nearest face along every lattice axis,
-  // where its extent is its radius times the axis's reach.
+  // the density varies most): the ball may reach its nearest face along every lattice axis.
   const int k = rooms_->at(b[0], b[1], b[2]);
   if (k < 0) return {0, 0, true};
-  double room = HUGE_VAL;
-  for (int a = 0; a < 3; ++a) {
-    const double lower = media::StrideRooms::block_lower(b[a] - k), upper = media::StrideRooms::block_lower(b[a] + k + 1);
-    room = std::min(room, std::min(l[a] - lower, upper - l[a]) / grid_->lattice_reach(a));
-  }
+  const double room = room_within(u, b, k, media::StrideRooms::kBlock);
   const double sigma_t = sigma_t_unit_ * grid_->lattice_density(u);
   // No sphere of the ladder is larger than largest_tau at the ball's least density.
-  const double r = std::min({free_radius, room * scale_, largest_tau * (1 + tolerance_) / sigma_t});
+  const double r = std::min({free_radius, room, largest_tau * (1 + tolerance_) / sigma_t});
   if (!(sigma_t * r >= smallest_tau)) return {0, 0, r < free_radius};
   return {r, sigma_t, r < free_radius};
 }

@@ -66,8 +66,6 @@ double ScenePaths::direct(const ShadowVertex& v, PixelRng& rng, PathCounters& co
   return sum;
 }
 
-bool ScenePaths::may_cast(double u, double most) { return u < 0.5 * most / kShadowRoulette; }
-
 double ScenePaths::collision_gain_bound(const ChannelMedium& m, const Vec3& w) const {
   if (environment_) return 0.5;  // a map's rays may go anywhere
   // The phase density is monotone in the cosine: its largest over the disc is at the disc's

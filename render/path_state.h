@@ -23,10 +23,14 @@ namespace stf::render {
 // (docs/studies/2026-12-stride-light.md).
 inline constexpr double kShadowRoulette = 0.005;
 inline double power_heuristic(double a, double b) { return a * a / (a * a + b * b); }
-// ScenePaths::may_cast(u, exp(-depth)) where a power of two below exp(depth), 2^k with k =
-// floor(depth log2(e)) less a margin for rounding, settles it without the exponential: false only
-// where may_cast is false. Deep in a dense medium nearly every collision stops here (brute force
-// spent a third of its time on those exponentials).
+// One uniform u decides a vertex's shadow rays: cast toward a light of gain g with probability
+// min(1, g most / kShadowRoulette), u below it. Before any light is drawn, u is held against the
+// most any gain allows (1/2): deep in a medium most vertices stop there.
+inline bool may_cast(double u, double most) { return u < 0.5 * most / kShadowRoulette; }
+// may_cast(u, exp(-depth)) where a power of two below exp(depth), 2^k with k = floor(depth
+// log2(e)) less a margin for rounding, settles it without the exponential: false only where
+// may_cast is false. Deep in a dense medium nearly every collision stops here (brute force spent
+// a third of its time on those exponentials).
 inline bool may_pass(double u, double depth) {
   if (depth < 4.6) return true;  // below ln(0.5 / kShadowRoulette) = 4.605 every u passes: the shallow, at once
   if (!(depth < 700)) return false;  // exp(-depth) is below 1e-304, or depth is not a number: none passes

@@ -223,9 +223,9 @@ bool ScenePaths::sphere_step(State& s, int c, const SphereRoom& room, PixelRng& 
     s.throughput *= m.albedo();
     if (next_event_) {
       const double bound = room.radius - length(o);
+      const Vec3 x = room.centre + o;
       ShadowOdds odds;
-      if (may_light(s, room.centre + o, m, bound, odds, rng))
-        s.x = room.centre + o, s.w = w, s.bound = bound, nee_at_collision(s, c, odds, rng, counters);
+      if (may_light(s, x, m, bound, odds, rng)) s.x = x, s.w = w, s.bound = bound, nee_at_collision(s, c, odds, rng, counters);
     }
     w = scatter(s, m, w, rng);
     if (!survives_roulette(s.throughput, rng)) return false;

@@ -197,15 +197,15 @@ TEST_F(SceneRender, AnalyticSphereStridesAgreeWithTheIcosphere) {
 }
 
 // The shadow rays' first test without an exponential (may_pass) turns a vertex away only where
-// the exponential would, u < 0.5 exp(-d) / kShadowRoulette (but for u = 0 past depth 700, where
-// that bound is below 1e-302), and it turns away most of what the exponential would.
+// may_cast(u, exp(-d)) would (but for u = 0 past depth 700, where exp(-d) is below 1e-304), and it
+// turns away most of what that would.
 TEST(ShadowOdds, MayPassTurnsAwayOnlyWhatTheExponentialWould) {
   render::PixelRng rng(9, 0);
   int refused = 0, turned = 0;
   for (int i = 0; i < 200000; ++i) {
     const double d = 800 * rng.uniform() * rng.uniform();
     const double u = i % 1000 == 0 ? 0.0 : rng.uniform() * (rng.uniform() < 0.5 ? 1.0 : 1e-6);
-    const bool passes = u < 0.5 * std::exp(-d) / render::kShadowRoulette;
+    const bool passes = render::may_cast(u, std::exp(-d));
     if (!render::may_pass(u, d)) {
       ASSERT_TRUE(!passes || (u == 0 && d >= 700)) << "u " << u << ", depth " << d;
     }

@@ -79,7 +79,10 @@ class DensityGrid {
     return bricks_[(std::size_t(bx) * std::size_t(brick_counts_[1]) + std::size_t(by)) * std::size_t(brick_counts_[2]) +
                    std::size_t(bz)];
   }
-  static double brick_lower(int b) { return double(b) * kBrick - 1.0; }
+  static double brick_lower(int b) { return block_lower(b, kBrick); }
+  // Where block b of `edge` cells begins along a lattice axis (blocks count from the padding's
+  // cell, -1, as the bricks do).
+  static double block_lower(int b, int edge) { return double(b) * edge - 1.0; }
   // The lattice extent, along lattice axis a, of a unit length of the grid's frame (row a of the
   // world-to-lattice matrix): a ball of radius r spans r times this about its centre.
   double lattice_reach(int a) const { return lattice_reach_[std::size_t(a)]; }

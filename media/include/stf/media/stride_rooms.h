@@ -19,7 +19,7 @@ struct StrideRooms {
   // a cell or two of the shipped grids) at a byte per 8 cells.
   static constexpr int kBlock = 2;
   // Block b along an axis covers lattice coordinates [b kBlock - 1, (b + 1) kBlock - 1].
-  static double block_lower(int b) { return double(b) * kBlock - 1.0; }
+  static double block_lower(int b) { return DensityGrid::block_lower(b, kBlock); }
 
   std::array<int, 3> counts{};
   // Per block: k >= 0 where the blocks within k of it (a cube 2k + 1 blocks a side, inside the

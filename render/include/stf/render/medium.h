@@ -11,6 +11,7 @@
 // within max <= (1 + tolerance) min (docs/render.md, "Strides through media that vary").
 #pragma once
 
+#include <array>
 #include <cmath>
 #include <memory>
 
@@ -94,10 +95,12 @@ class ChannelMedium {
   double grid_transmittance(const Vec3& x, const Vec3& w, double length, PixelRng& rng) const;
   StrideBall grid_stride_ball(const Vec3& x, double free_radius, double smallest_tau, double largest_tau) const;
   double grid_least_optical_depth(const Vec3& x, double length) const;
-  // Whether a density range [least, most] is one a stride may take: least > 0, most <= (1 + tolerance) least.
-  bool within_tolerance(std::pair<double, double> range) const {
-    return range.first > 0 && range.second <= (1 + tolerance_) * range.first;
-  }
+  // x in the grid's lattice and its block of `edge` cells along each axis; false outside the
+  // `counts` blocks (or not a number).
+  bool lattice_block(const Vec3& x, int edge, const std::array<int, 3>& counts, Vec3& u, int b[3]) const;
+  // How far, in scene units, every segment from lattice point u stays within the blocks of `edge`
+  // cells b - k .. b + k along each axis.
+  double room_within(const Vec3& u, const int b[3], int k, int edge) const;
 
   double sigma_t_max_ = 0, inv_sigma_t_ = 0, albedo_ = 0, g_ = 0;
   HgParams<double> hg_{};

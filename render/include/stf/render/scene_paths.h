@@ -84,10 +84,6 @@ class ScenePaths {
     RayKind kind;
     double most, u;
   };
-  // One uniform u decides a vertex's shadow rays: cast toward a light of gain g with probability
-  // min(1, g most / kShadowRoulette), u below it. Before any light is drawn, u is held against
-  // the most any gain allows (1/2): deep in a medium most vertices stop there.
-  static bool may_cast(double u, double most);
   // The uniform that decides a vertex's shadow rays, and the least optical depth from the vertex
   // toward any light (its transmittance bound, most, is exp(-depth)).
   struct ShadowOdds {
